@@ -1,0 +1,190 @@
+#![doc = include_str!("../README.md")]
+#![no_std]
+#![deny(missing_docs)]
+
+pub mod camera;
+mod error;
+pub mod image;
+pub mod math;
+pub mod rng;
+pub mod se3;
+
+pub use camera::Intrinsics;
+pub use error::{Buffer, Error};
+pub use image::{ImageView, ImageViewMut};
+pub use math::Real;
+pub use se3::{Pose, Twist};
+
+/// Every tunable of the algorithm, with the paper's defaults in [`Config::PAPER`].
+///
+/// `#[non_exhaustive]`: outside the crate, start from [`Config::PAPER`] and assign fields.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub struct Config {
+    // --- CreateFrames -------------------------------------------------------------------
+    /// Pixels sampled per step (paper `n`); each can be the origin of at most one frame.
+    pub frame_samples: usize,
+    /// Largest distance between the three points of a frame (paper `d_c`), metres. Small
+    /// enough that most frames sit on one object, large enough for a usable lever arm.
+    pub frame_max_side_m: Real,
+    /// Smallest distance between two points of a frame, metres: below it, depth and flow
+    /// noise (about 1 mm) dominates the frame's rotation.
+    pub frame_min_side_m: Real,
+    /// Smallest sine of the triangle's angle at the origin (0.3 ≈ 17°): flatter triangles
+    /// give a poorly defined z axis.
+    pub frame_min_sin: Real,
+    /// Largest depth step across the four pixels used to interpolate depth at `t+1`,
+    /// metres; above it the point sits on a depth edge and the frame is dropped.
+    pub depth_edge_m: Real,
+
+    // --- Twists and GroupBFIFs ----------------------------------------------------------
+    /// Length that converts rotation to distance in [`Twist::distance`], metres (about an
+    /// object's size, so a rotation counts like the displacement it causes on the object).
+    pub length_scale_m: Real,
+    /// Noise floor: a frame whose twist norm is below it counts as static. Static frames
+    /// never link across segments and never link to moving frames. About three times the
+    /// twist noise that 0.3 px flow and 1 mm depth noise give a 3 cm frame.
+    pub static_below_m: Real,
+    /// Upper end of the binned KDE of pairwise twist distances, metres; larger distances
+    /// fall in the last bin (they are "different bodies" in any case).
+    pub kde_range_m: Real,
+    /// Gaussian kernel bandwidth of the KDE, metres (about the twist noise).
+    pub kde_bandwidth_m: Real,
+    /// Posterior probability of "same rigid body" above which two frames link.
+    pub link_posterior: Real,
+    /// Links a frame needs to be a core frame; only core frames join groups to each other,
+    /// so a few frames straddling two bodies cannot chain the bodies together.
+    pub core_links: u32,
+    /// Groups with fewer frames are treated as noise and seed nothing.
+    pub min_group_frames: u32,
+
+    // --- CorrectMask --------------------------------------------------------------------
+    /// Segments smaller than this after intersecting the carried and static masks join
+    /// their largest neighbour, pixels.
+    pub min_segment_px: u32,
+    /// Largest distance between observed and rigid-motion-predicted flow for a pixel to
+    /// join a group while regions grow, pixels.
+    pub grow_tol_px: Real,
+
+    // --- FindAction ---------------------------------------------------------------------
+    /// Heatmap value from which a pixel is "certain" (paper `l_u`), 0-255.
+    pub certain_from: u8,
+    /// Heatmap value from which a pixel is "uncertain" (paper `l_l`); below it is table.
+    pub uncertain_from: u8,
+    /// Largest k tried by the elbow method for either k-means.
+    pub max_clusters: usize,
+    /// Pixels drawn (seeded) from each class for k-means; bounds the cost on large images.
+    pub kmeans_samples: usize,
+    /// Lloyd iterations per k-means run.
+    pub kmeans_iters: u32,
+    /// Largest metric distance between the two certain cluster centres of a pair (paper
+    /// `d_a`), metres.
+    pub pair_max_m: Real,
+    /// Largest metric distance from an uncertain centre to the pair's connecting segment
+    /// (paper `d_b`), metres: about half an object's width, so the uncertain band is
+    /// between the two objects and not beside them.
+    pub uncertain_max_m: Real,
+    /// Push length (paper `d_push`), metres.
+    pub push_len_m: Real,
+
+    // --- Loop (Algorithm 1) -------------------------------------------------------------
+    /// Most pushes the loop makes before it stops.
+    pub max_pushes: u32,
+    /// Seed of the in-crate PRNG; same inputs and seed give bit-identical output.
+    pub seed: u64,
+}
+
+impl Config {
+    /// Paper defaults (`l_u` 150, `l_l` 120, `d_a` 10 cm, `d_push` 2 cm, `n` 1000) and
+    /// riseg's documented choices for what the paper leaves open.
+    pub const PAPER: Self = Self {
+        frame_samples: 1000,
+        frame_max_side_m: 0.03,
+        frame_min_side_m: 0.005,
+        frame_min_sin: 0.3,
+        depth_edge_m: 0.01,
+        length_scale_m: 0.05,
+        static_below_m: 0.003,
+        kde_range_m: 0.08,
+        kde_bandwidth_m: 0.001,
+        link_posterior: 0.5,
+        core_links: 4,
+        min_group_frames: 5,
+        min_segment_px: 150,
+        grow_tol_px: 2.0,
+        certain_from: 150,
+        uncertain_from: 120,
+        max_clusters: 8,
+        kmeans_samples: 2000,
+        kmeans_iters: 20,
+        pair_max_m: 0.10,
+        uncertain_max_m: 0.03,
+        push_len_m: 0.02,
+        max_pushes: 3,
+        seed: 0,
+    };
+
+    /// Checks every field against its documented range.
+    ///
+    /// # Errors
+    /// [`Error::BadConfig`] naming no field (the enum carries no strings): a length is not
+    /// finite and positive, a count is zero, `uncertain_from >= certain_from`, or
+    /// `link_posterior` is outside `(0, 1)`.
+    pub fn check(&self) -> Result<(), Error> {
+        let lengths = [
+            self.frame_max_side_m,
+            self.depth_edge_m,
+            self.length_scale_m,
+            self.static_below_m,
+            self.kde_range_m,
+            self.kde_bandwidth_m,
+            self.grow_tol_px,
+            self.pair_max_m,
+            self.uncertain_max_m,
+            self.push_len_m,
+        ];
+        let ok = lengths.iter().all(|v| v.is_finite() && *v > 0.0)
+            && self.frame_min_side_m.is_finite()
+            && (0.0..self.frame_max_side_m).contains(&self.frame_min_side_m)
+            && self.frame_min_sin.is_finite()
+            && (0.0..1.0).contains(&self.frame_min_sin)
+            && self.link_posterior > 0.0
+            && self.link_posterior < 1.0
+            && self.frame_samples >= 3
+            && self.frame_samples <= u32::MAX as usize / 4
+            && self.max_clusters >= 2
+            && self.max_clusters <= MAX_CLUSTERS
+            && self.kmeans_samples >= self.max_clusters
+            && self.kmeans_iters > 0
+            && self.uncertain_from < self.certain_from;
+        if ok { Ok(()) } else { Err(Error::BadConfig) }
+    }
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self::PAPER
+    }
+}
+
+/// Capacity bound of [`Config::max_clusters`] (fixed-size arrays in FindAction).
+pub const MAX_CLUSTERS: usize = 16;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paper_config_is_valid_and_checks_reject_bad_fields() {
+        assert_eq!(Config::PAPER.check(), Ok(()));
+        let mut c = Config::PAPER;
+        c.uncertain_from = 200;
+        assert_eq!(c.check(), Err(Error::BadConfig));
+        let mut c = Config::PAPER;
+        c.push_len_m = f32::NAN;
+        assert_eq!(c.check(), Err(Error::BadConfig));
+        let mut c = Config::PAPER;
+        c.max_clusters = MAX_CLUSTERS + 1;
+        assert_eq!(c.check(), Err(Error::BadConfig));
+    }
+}

@@ -1,0 +1,1 @@
+//! `Vec`-backed scratch for riseg-core's caller-provided buffers.

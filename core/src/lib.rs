@@ -2,12 +2,17 @@
 #![no_std]
 #![deny(missing_docs)]
 
+#[cfg(test)]
+extern crate std;
+
 pub mod camera;
 mod error;
+pub mod frames;
 pub mod image;
 pub mod math;
 pub mod rng;
 pub mod se3;
+pub mod synth;
 
 pub use camera::Intrinsics;
 pub use error::{Buffer, Error};
@@ -36,6 +41,10 @@ pub struct Config {
     /// Largest depth step across the four pixels used to interpolate depth at `t+1`,
     /// metres; above it the point sits on a depth edge and the frame is dropped.
     pub depth_edge_m: Real,
+    /// Largest change of any side of a frame's triangle between `t` and `t+1`, metres. A
+    /// rigid body keeps its distances, so a larger change means flow or depth error, or a
+    /// frame straddling two bodies that moved differently: the frame is dropped.
+    pub frame_rigid_tol_m: Real,
 
     // --- Twists and GroupBFIFs ----------------------------------------------------------
     /// Length that converts rotation to distance in [`Twist::distance`], metres (about an
@@ -103,6 +112,7 @@ impl Config {
         frame_min_side_m: 0.005,
         frame_min_sin: 0.3,
         depth_edge_m: 0.01,
+        frame_rigid_tol_m: 0.004,
         length_scale_m: 0.05,
         static_below_m: 0.003,
         kde_range_m: 0.08,
@@ -134,6 +144,7 @@ impl Config {
         let lengths = [
             self.frame_max_side_m,
             self.depth_edge_m,
+            self.frame_rigid_tol_m,
             self.length_scale_m,
             self.static_below_m,
             self.kde_range_m,

@@ -1,0 +1,564 @@
+//! CreateFrames and CalcBFIFs: sample labelled pixels, build small body frames on them,
+//! track the frames through the flow, and compute each frame's spatial twist.
+//!
+//! Contract:
+//! - Sampling is seeded and stratified: the eligible pixels (label ≠ 0, valid depth at `t`)
+//!   are split, in row-major order, into `n` equal runs and one pixel is drawn from each.
+//!   Every eligible pixel is equally likely, no pixel is drawn twice, and the samples come
+//!   out sorted by row, which the neighbour search uses.
+//! - Each sample is the origin of at most one frame. The other two points are sampled
+//!   pixels with the same label, within [`Config::frame_max_side_m`] of each other and at
+//!   least [`Config::frame_min_side_m`] apart; the second point is the farthest such
+//!   sample, the third the one that makes the largest triangle. Triangles whose angle at
+//!   the origin has a sine below [`Config::frame_min_sin`] are not used.
+//! - Points are tracked by the flow at their pixel; depth at `t+1` is read bilinearly at
+//!   the tracked position. A frame with a missing reading at `t+1` (no depth, a depth edge,
+//!   outside the image, non-finite flow) is dropped, not guessed, and so is a frame whose
+//!   triangle changes a side by more than [`Config::frame_rigid_tol_m`] (not rigid).
+//! - The space frame is fixed at the centroid of the sampled points at `t` with the camera's
+//!   axes (DESIGN.md §3): rotation noise times a 60 cm lever arm to the camera would swamp
+//!   the linear part of the twist.
+
+use nalgebra::{Point3, Vector3};
+
+use crate::{
+    Config, Error, ImageView, Intrinsics, Twist,
+    error::{Buffer, check_len},
+    image::valid_depth,
+    math::{Real, floor},
+    rng::Pcg32,
+    se3::{spatial_twist, try_frame_from_points},
+};
+
+/// The observations one UpdateMask step reads: the accumulated mask, depth before and after
+/// the push, and the forward flow from `t` to `t+1`, all of one size.
+#[derive(Debug, Clone, Copy)]
+pub struct MotionInput<'a> {
+    /// Accumulated mask at `t` (`0` = background).
+    pub labels_t: ImageView<'a, u16>,
+    /// Depth at `t`, metres.
+    pub depth_t: ImageView<'a, f32>,
+    /// Depth at `t+1`, metres.
+    pub depth_t1: ImageView<'a, f32>,
+    /// Forward flow `t → t+1`, `[dx, dy]` pixels.
+    pub flow: ImageView<'a, [f32; 2]>,
+    /// Camera intrinsics (both images).
+    pub intrinsics: Intrinsics,
+}
+
+impl<'a> MotionInput<'a> {
+    /// Bundles the observations after checking that they agree.
+    ///
+    /// # Errors
+    /// [`Error::SizeMismatch`] if the images differ in size; the errors of
+    /// [`Intrinsics::check`] for bad intrinsics.
+    pub fn new(
+        labels_t: ImageView<'a, u16>,
+        depth_t: ImageView<'a, f32>,
+        depth_t1: ImageView<'a, f32>,
+        flow: ImageView<'a, [f32; 2]>,
+        intrinsics: Intrinsics,
+    ) -> Result<Self, Error> {
+        let size = labels_t.size();
+        if depth_t.size() != size || depth_t1.size() != size || flow.size() != size {
+            return Err(Error::SizeMismatch);
+        }
+        intrinsics.check()?;
+        Ok(Self {
+            labels_t,
+            depth_t,
+            depth_t1,
+            flow,
+            intrinsics,
+        })
+    }
+
+    /// `(width, height)` of every image.
+    #[must_use]
+    pub const fn size(&self) -> (usize, usize) {
+        self.labels_t.size()
+    }
+}
+
+/// One sampled pixel; scratch of [`create_frames`] (callers only allocate these).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameSample {
+    px: [u32; 2],
+    label: u16,
+    tracked: bool,
+    px_t1: [Real; 2],
+    p_t: Point3<Real>,
+    p_t1: Point3<Real>,
+}
+
+impl FrameSample {
+    /// An unused sample, for sizing scratch arrays (`[FrameSample::EMPTY; N]`).
+    pub const EMPTY: Self = Self {
+        px: [0, 0],
+        label: 0,
+        tracked: false,
+        px_t1: [0.0, 0.0],
+        p_t: Point3::new(0.0, 0.0, 0.0),
+        p_t1: Point3::new(0.0, 0.0, 0.0),
+    };
+}
+
+impl Default for FrameSample {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
+/// A body frame on three points of one segment, at `t` and tracked to `t+1`.
+///
+/// Point 0 is the origin, point 1 gives the x axis, point 2 the plane
+/// ([`try_frame_from_points`]). Points are in the camera frame, metres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodyFrame {
+    /// Pixels `[u, v]` of the three points at `t`.
+    pub px_t: [[u32; 2]; 3],
+    /// Where the flow carries them at `t+1`, pixels.
+    pub px_t1: [[Real; 2]; 3],
+    /// The three points at `t`, camera frame.
+    pub p_t: [Point3<Real>; 3],
+    /// The three points at `t+1`, camera frame.
+    pub p_t1: [Point3<Real>; 3],
+    /// Label of the accumulated mask at the points (all three share it).
+    pub label: u16,
+}
+
+impl BodyFrame {
+    /// An unused frame, for sizing output arrays.
+    pub const EMPTY: Self = Self {
+        px_t: [[0; 2]; 3],
+        px_t1: [[0.0; 2]; 3],
+        p_t: [Point3::new(0.0, 0.0, 0.0); 3],
+        p_t1: [Point3::new(0.0, 0.0, 0.0); 3],
+        label: 0,
+    };
+
+    /// The spatial twist (BFIF) of this frame in the space frame whose origin is
+    /// `space_origin` (camera coordinates) and whose axes are the camera's; `None` if a
+    /// triangle is degenerate.
+    #[must_use]
+    pub fn twist(&self, space_origin: &Point3<Real>) -> Option<Twist> {
+        let o = space_origin.coords;
+        let [a, b, c] = self.p_t;
+        let [a1, b1, c1] = self.p_t1;
+        let space_from_body_t = try_frame_from_points(&(a - o), &(b - o), &(c - o))?;
+        let space_from_body_t1 = try_frame_from_points(&(a1 - o), &(b1 - o), &(c1 - o))?;
+        let twist = spatial_twist(&space_from_body_t, &space_from_body_t1);
+        twist.is_finite().then_some(twist)
+    }
+}
+
+impl Default for BodyFrame {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
+/// What [`create_frames`] produced.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameSet {
+    /// Frames written to the front of the output slice.
+    pub count: usize,
+    /// Pixels sampled (at most [`Config::frame_samples`]).
+    pub sampled: usize,
+    /// Origin of the space frame (centroid of the sampled points at `t`), camera frame.
+    pub space_origin: Point3<Real>,
+}
+
+/// CreateFrames: samples `cfg.frame_samples` labelled pixels and builds at most one frame
+/// on each; writes the frames to the front of `frames`.
+///
+/// `samples` and `frames` each need [`Config::frame_samples`] entries. Deterministic for
+/// `cfg.seed`.
+///
+/// # Errors
+/// [`Error::BufferTooSmall`] if `samples` or `frames` is too short (nothing is written);
+/// [`Error::BadConfig`] if `cfg` fails [`Config::check`].
+pub fn create_frames(
+    input: &MotionInput<'_>,
+    cfg: &Config,
+    samples: &mut [FrameSample],
+    frames: &mut [BodyFrame],
+) -> Result<FrameSet, Error> {
+    cfg.check()?;
+    let n = cfg.frame_samples;
+    check_len(Buffer::Samples, n, samples.len())?;
+    check_len(Buffer::Frames, n, frames.len())?;
+    let sampled = sample_pixels(input, cfg, &mut samples[..n]);
+    let samples = &samples[..sampled];
+
+    let mut sum = Vector3::zeros();
+    for s in samples {
+        sum += s.p_t.coords;
+    }
+    let space_origin = if sampled > 0 {
+        Point3::from(sum / sampled as Real)
+    } else {
+        Point3::origin()
+    };
+
+    let mut count = 0;
+    for (i, origin) in samples.iter().enumerate() {
+        if !origin.tracked {
+            continue;
+        }
+        let Some(frame) = build_frame(input, cfg, samples, i) else {
+            continue;
+        };
+        if frame.twist(&space_origin).is_none() {
+            continue;
+        }
+        if let Some(slot) = frames.get_mut(count) {
+            *slot = frame;
+            count += 1;
+        }
+    }
+    Ok(FrameSet {
+        count,
+        sampled,
+        space_origin,
+    })
+}
+
+/// CalcBFIFs: the spatial twist of each frame in the space frame at `space_origin`.
+/// Frames are those [`create_frames`] kept, so none is degenerate; should one be, its
+/// twist is zero.
+///
+/// # Errors
+/// [`Error::BufferTooSmall`] if `twists` is shorter than `frames`.
+pub fn compute_twists(
+    frames: &[BodyFrame],
+    space_origin: &Point3<Real>,
+    twists: &mut [Twist],
+) -> Result<(), Error> {
+    check_len(Buffer::FrameScratch, frames.len(), twists.len())?;
+    for (frame, twist) in frames.iter().zip(twists.iter_mut()) {
+        *twist = frame.twist(space_origin).unwrap_or(Twist::ZERO);
+    }
+    Ok(())
+}
+
+fn eligible(input: &MotionInput<'_>, x: usize, y: usize) -> Option<(u16, Real)> {
+    let label = *input.labels_t.get(x, y)?;
+    let z = valid_depth(*input.depth_t.get(x, y)?)?;
+    (label != 0).then_some((label, z))
+}
+
+/// Stratified seeded sampling; returns how many samples were written (sorted row-major).
+fn sample_pixels(input: &MotionInput<'_>, cfg: &Config, out: &mut [FrameSample]) -> usize {
+    let (width, height) = input.size();
+    let mut total: u64 = 0;
+    for y in 0..height {
+        for x in 0..width {
+            if eligible(input, x, y).is_some() {
+                total += 1;
+            }
+        }
+    }
+    let want = (out.len() as u64).min(total);
+    if want == 0 {
+        return 0;
+    }
+    let mut rng = Pcg32::new(cfg.seed);
+    // Stratum i covers ranks [i·total/want, (i+1)·total/want); one draw in each.
+    let target = |i: u64, rng: &mut Pcg32| {
+        let lo = i * total / want;
+        let hi = (i + 1) * total / want;
+        lo + u64::from(rng.below(u32::try_from(hi - lo).unwrap_or(u32::MAX)))
+    };
+    let mut taken: u64 = 0;
+    let mut next = target(0, &mut rng);
+    let mut rank: u64 = 0;
+    let k = &input.intrinsics;
+    for y in 0..height {
+        for x in 0..width {
+            let Some((label, z)) = eligible(input, x, y) else {
+                continue;
+            };
+            if rank == next {
+                if let Some(slot) = out.get_mut(taken as usize) {
+                    *slot = track(
+                        input,
+                        cfg,
+                        x,
+                        y,
+                        label,
+                        k.back_project(x as Real, y as Real, z),
+                    );
+                }
+                taken += 1;
+                if taken == want {
+                    return taken as usize;
+                }
+                next = target(taken, &mut rng);
+            }
+            rank += 1;
+        }
+    }
+    taken as usize
+}
+
+fn track(
+    input: &MotionInput<'_>,
+    cfg: &Config,
+    x: usize,
+    y: usize,
+    label: u16,
+    p_t: Point3<Real>,
+) -> FrameSample {
+    let mut sample = FrameSample {
+        px: [x as u32, y as u32],
+        label,
+        p_t,
+        ..FrameSample::EMPTY
+    };
+    let Some([dx, dy]) = input.flow.get(x, y).copied() else {
+        return sample;
+    };
+    let (u1, v1) = (x as Real + dx, y as Real + dy);
+    if let Some(z1) = bilinear_depth(&input.depth_t1, u1, v1, cfg.depth_edge_m) {
+        sample.tracked = true;
+        sample.px_t1 = [u1, v1];
+        sample.p_t1 = input.intrinsics.back_project(u1, v1, z1);
+    }
+    sample
+}
+
+/// Depth at a sub-pixel position from its four neighbours; `None` if any is missing, the
+/// position is outside the image, or the four span more than `edge_m` (a depth edge).
+fn bilinear_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, edge_m: Real) -> Option<Real> {
+    if !(u.is_finite() && v.is_finite()) || u < 0.0 || v < 0.0 {
+        return None;
+    }
+    let (x0, y0) = (floor(u), floor(v));
+    let (fx, fy) = (u - x0, v - y0);
+    let (x0, y0) = (x0 as i64, y0 as i64);
+    // At the last row/column the far neighbour has zero weight; reuse the near one.
+    let x1 = if fx > 0.0 { x0 + 1 } else { x0 };
+    let y1 = if fy > 0.0 { y0 + 1 } else { y0 };
+    let z00 = valid_depth(depth.at(x0, y0)?)?;
+    let z10 = valid_depth(depth.at(x1, y0)?)?;
+    let z01 = valid_depth(depth.at(x0, y1)?)?;
+    let z11 = valid_depth(depth.at(x1, y1)?)?;
+    let lo = z00.min(z10).min(z01).min(z11);
+    let hi = z00.max(z10).max(z01).max(z11);
+    if hi - lo > edge_m {
+        return None;
+    }
+    let top = z00 + (z10 - z00) * fx;
+    let bottom = z01 + (z11 - z01) * fx;
+    Some(top + (bottom - top) * fy)
+}
+
+/// The frame with origin `samples[i]`, or `None` if no good triangle exists.
+fn build_frame(
+    input: &MotionInput<'_>,
+    cfg: &Config,
+    samples: &[FrameSample],
+    i: usize,
+) -> Option<BodyFrame> {
+    let o = samples.get(i)?;
+    let k = &input.intrinsics;
+    let max_side = cfg.frame_max_side_m;
+    let min_side = cfg.frame_min_side_m;
+    // Points within max_side of the origin are at most this many pixels away.
+    let near_z = (o.p_t.z - max_side).max(1e-3);
+    let reach = max_side * k.fx.max(k.fy) / near_z + 1.0;
+    let reach_px = if reach.is_finite() && reach < 1e6 {
+        reach as i64
+    } else {
+        i64::MAX / 4
+    };
+    let (ox, oy) = (i64::from(o.px[0]), i64::from(o.px[1]));
+    let first = samples.partition_point(|s| i64::from(s.px[1]) < oy - reach_px);
+    let last = samples.partition_point(|s| i64::from(s.px[1]) <= oy + reach_px);
+    let window = samples.get(first..last)?;
+    let candidate = |s: &FrameSample| {
+        s.tracked
+            && s.label == o.label
+            && (i64::from(s.px[0]) - ox).abs() <= reach_px
+            && s.px != o.px
+    };
+
+    let mut best_j: Option<(&FrameSample, Real)> = None;
+    for s in window.iter().filter(|s| candidate(s)) {
+        let d = (s.p_t - o.p_t).norm();
+        if d >= min_side && d <= max_side && best_j.is_none_or(|(_, bd)| d > bd) {
+            best_j = Some((s, d));
+        }
+    }
+    let (j, dj) = best_j?;
+    let a = j.p_t - o.p_t;
+    let mut best_k: Option<(&FrameSample, Real)> = None;
+    for s in window.iter().filter(|s| candidate(s) && s.px != j.px) {
+        let b = s.p_t - o.p_t;
+        let db = b.norm();
+        let djk = (s.p_t - j.p_t).norm();
+        if db < min_side || db > max_side || djk < min_side || djk > max_side {
+            continue;
+        }
+        let area = a.cross(&b).norm();
+        if area >= cfg.frame_min_sin * dj * db && best_k.is_none_or(|(_, ba)| area > ba) {
+            best_k = Some((s, area));
+        }
+    }
+    let (kk, _) = best_k?;
+    let pts = [o, j, kk];
+    for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+        let before = (pts[p].p_t - pts[q].p_t).norm();
+        let after = (pts[p].p_t1 - pts[q].p_t1).norm();
+        if !((after - before).abs() <= cfg.frame_rigid_tol_m) {
+            return None;
+        }
+    }
+    Some(BodyFrame {
+        px_t: [o.px, j.px, kk.px],
+        px_t1: [o.px_t1, j.px_t1, kk.px_t1],
+        p_t: [o.p_t, j.p_t, kk.p_t],
+        p_t1: [o.p_t1, j.p_t1, kk.p_t1],
+        label: o.label,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::vec;
+
+    use nalgebra::{Translation3, Vector3};
+
+    use super::*;
+    use crate::Pose;
+    use crate::synth::fixture::{Rendered, box_at, render, spin_about};
+
+    fn input(r: &Rendered) -> MotionInput<'_> {
+        let (w, h) = (r.width, r.height);
+        MotionInput::new(
+            ImageView::packed(w, h, &r.labels_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t1).unwrap(),
+            ImageView::packed(w, h, &r.flow).unwrap(),
+            r.intrinsics,
+        )
+        .unwrap()
+    }
+
+    fn two_moving_boxes() -> (Rendered, [Pose; 2]) {
+        let mut a = box_at(-0.04, 0.0, 0.6, [0.04, 0.03], 1);
+        let mut b = box_at(0.04, 0.0, 0.6, [0.04, 0.03], 2);
+        a.motion = Translation3::new(0.01, 0.0, 0.0).into();
+        b.motion = spin_about(Vector3::new(0.04, 0.0, 0.6), 0.1);
+        let m = [a.motion, b.motion];
+        (render(&[a, b], 320, 240), m)
+    }
+
+    #[test]
+    fn every_frame_on_a_body_has_that_bodys_spatial_twist() {
+        let (r, motions) = two_moving_boxes();
+        let input = input(&r);
+        let cfg = Config::PAPER;
+        let mut samples = vec![FrameSample::EMPTY; cfg.frame_samples];
+        let mut frames = vec![BodyFrame::EMPTY; cfg.frame_samples];
+        let set = create_frames(&input, &cfg, &mut samples, &mut frames).unwrap();
+        assert!(set.sampled == cfg.frame_samples, "{set:?}");
+        assert!(set.count > 500, "{set:?}");
+        let mut twists = vec![Twist::ZERO; set.count];
+        compute_twists(&frames[..set.count], &set.space_origin, &mut twists).unwrap();
+        let to_space = Translation3::from(-set.space_origin.coords);
+        for (f, t) in frames[..set.count].iter().zip(&twists) {
+            let m = motions[usize::from(f.label) - 1];
+            let expected = Twist::log(&(to_space * m * to_space.inverse()));
+            assert!(t.distance(&expected, 0.05) < 2e-4, "{t:?} vs {expected:?}");
+            for p in 0..3 {
+                let side = (f.p_t[p] - f.p_t[(p + 1) % 3]).norm();
+                assert!(side <= cfg.frame_max_side_m + 1e-6 && side >= cfg.frame_min_side_m);
+            }
+        }
+    }
+
+    #[test]
+    fn sampling_is_seeded_and_never_repeats_a_pixel() {
+        let (r, _) = two_moving_boxes();
+        let input = input(&r);
+        let mut cfg = Config::PAPER;
+        let mut a = vec![FrameSample::EMPTY; cfg.frame_samples];
+        let mut b = vec![FrameSample::EMPTY; cfg.frame_samples];
+        let mut frames = vec![BodyFrame::EMPTY; cfg.frame_samples];
+        create_frames(&input, &cfg, &mut a, &mut frames).unwrap();
+        create_frames(&input, &cfg, &mut b, &mut frames).unwrap();
+        assert_eq!(a, b);
+        assert!(
+            a.windows(2)
+                .all(|w| (w[0].px[1], w[0].px[0]) < (w[1].px[1], w[1].px[0]))
+        );
+        cfg.seed = 1;
+        create_frames(&input, &cfg, &mut b, &mut frames).unwrap();
+        assert_ne!(a, b);
+    }
+
+    #[test]
+    fn frames_without_a_reading_at_t1_are_dropped() {
+        let (mut r, _) = two_moving_boxes();
+        r.depth_t1.iter_mut().for_each(|z| *z = f32::NAN);
+        let cfg = Config::PAPER;
+        let mut samples = vec![FrameSample::EMPTY; cfg.frame_samples];
+        let mut frames = vec![BodyFrame::EMPTY; cfg.frame_samples];
+        let set = create_frames(&input(&r), &cfg, &mut samples, &mut frames).unwrap();
+        assert_eq!(set.count, 0);
+        assert_eq!(set.sampled, cfg.frame_samples);
+    }
+
+    #[test]
+    fn frames_straddling_bodies_that_moved_apart_are_dropped() {
+        // One label over two boxes that move differently: triangles across the seam stretch.
+        let (mut r, motions) = two_moving_boxes();
+        r.labels_t.iter_mut().for_each(|l| *l = u16::from(*l != 0));
+        let cfg = Config::PAPER;
+        let mut samples = vec![FrameSample::EMPTY; cfg.frame_samples];
+        let mut frames = vec![BodyFrame::EMPTY; cfg.frame_samples];
+        let set = create_frames(&input(&r), &cfg, &mut samples, &mut frames).unwrap();
+        let to_space = Translation3::from(-set.space_origin.coords);
+        let expected = motions.map(|m| Twist::log(&(to_space * m * to_space.inverse())));
+        let off = frames[..set.count]
+            .iter()
+            .filter_map(|f| f.twist(&set.space_origin))
+            .filter(|t| expected.iter().all(|e| t.distance(e, 0.05) > 2e-3))
+            .count();
+        assert!(
+            off * 20 < set.count,
+            "{off} of {} frames match neither body",
+            set.count
+        );
+    }
+
+    #[test]
+    fn bad_inputs_are_errors_not_panics() {
+        let (r, _) = two_moving_boxes();
+        let input = input(&r);
+        let cfg = Config::PAPER;
+        let mut samples = vec![FrameSample::EMPTY; 10];
+        let mut frames = vec![BodyFrame::EMPTY; cfg.frame_samples];
+        assert!(matches!(
+            create_frames(&input, &cfg, &mut samples, &mut frames),
+            Err(Error::BufferTooSmall {
+                buffer: Buffer::Samples,
+                ..
+            })
+        ));
+        let small = ImageView::packed(2, 2, &r.depth_t[..4]).unwrap();
+        assert_eq!(
+            MotionInput::new(
+                input.labels_t,
+                small,
+                input.depth_t1,
+                input.flow,
+                r.intrinsics
+            )
+            .err(),
+            Some(Error::SizeMismatch)
+        );
+    }
+}

@@ -8,6 +8,7 @@ extern crate std;
 pub mod camera;
 mod error;
 pub mod frames;
+pub mod group;
 pub mod image;
 pub mod math;
 pub mod rng;
@@ -50,9 +51,9 @@ pub struct Config {
     /// Length that converts rotation to distance in [`Twist::distance`], metres (about an
     /// object's size, so a rotation counts like the displacement it causes on the object).
     pub length_scale_m: Real,
-    /// Noise floor: a frame whose twist norm is below it counts as static. Static frames
-    /// never link across segments and never link to moving frames. About three times the
-    /// twist noise that 0.3 px flow and 1 mm depth noise give a 3 cm frame.
+    /// Noise floor: a frame whose twist norm is below it counts as static, and pairs across
+    /// segments count as evidence only when both frames move. About twice the median twist
+    /// noise that 0.3 mm point noise gives a 3 cm frame.
     pub static_below_m: Real,
     /// Upper end of the binned KDE of pairwise twist distances, metres; larger distances
     /// fall in the last bin (they are "different bodies" in any case).
@@ -61,9 +62,6 @@ pub struct Config {
     pub kde_bandwidth_m: Real,
     /// Posterior probability of "same rigid body" above which two frames link.
     pub link_posterior: Real,
-    /// Links a frame needs to be a core frame; only core frames join groups to each other,
-    /// so a few frames straddling two bodies cannot chain the bodies together.
-    pub core_links: u32,
     /// Groups with fewer frames are treated as noise and seed nothing.
     pub min_group_frames: u32,
 
@@ -114,11 +112,10 @@ impl Config {
         depth_edge_m: 0.01,
         frame_rigid_tol_m: 0.004,
         length_scale_m: 0.05,
-        static_below_m: 0.003,
+        static_below_m: 0.005,
         kde_range_m: 0.08,
         kde_bandwidth_m: 0.001,
         link_posterior: 0.5,
-        core_links: 4,
         min_group_frames: 5,
         min_segment_px: 150,
         grow_tol_px: 2.0,

@@ -1,0 +1,647 @@
+//! GroupBFIFs: decide which frames lie on one rigid body from their twists and the mask.
+//!
+//! Contract, for frames with twists `V_i` and accumulated-mask labels `l_i`:
+//! - Frames link only inside one segment of the mask; a segment is split, never merged
+//!   here. A frame is *moving* when `|V_i|` (rotation weighted by
+//!   [`Config::length_scale_m`]) reaches [`Config::static_below_m`]; pairs across segments
+//!   count as data only when both frames move, so static frames (whose twists are all
+//!   noise around zero) never say anything about other segments.
+//! - The data of a pair is its twist distance `d_ij`. A binned Gaussian KDE of `d` over all
+//!   pairs is split at its first valley into the near component (pairs on one body: `d`
+//!   is twist noise) and the far component (pairs on two bodies that moved differently).
+//!   These are the likelihoods `p(d | same body)` and `p(d | different bodies)`.
+//! - The prior comes from the mask: `P(same body | one segment)` and `P(same body | two
+//!   segments)` are the Laplace-smoothed shares of near pairs among the pairs inside one
+//!   segment and among the pairs across segments.
+//! - A pair links when the posterior `P(same body | d, mask)` exceeds
+//!   [`Config::link_posterior`]. With no valley (nothing moved, one moving body, or bodies
+//!   whose motions noise cannot tell apart) every pair is near.
+//! - Groups are formed by quick shift on the link graph, joined with union-find: each frame
+//!   points at its nearest linked frame with more links (density). A plain union of all
+//!   links would let a few corrupted twists (a flow outlier, a triangle on two bodies)
+//!   chain two bodies together; pointing up the density gradient does not.
+//! - Groups with fewer than [`Config::min_group_frames`] frames become [`NO_GROUP`].
+//!
+//! Cost: three passes over the `n(n−1)/2` pairs; the first computes distances and stores
+//! each pair's KDE bin in one byte, the other two read bins only.
+
+use crate::{
+    Config, Error, Twist,
+    error::{Buffer, check_len},
+    math::{Real, exp, floor},
+};
+
+/// Group id of a frame that belongs to no group.
+pub const NO_GROUP: u16 = u16::MAX;
+
+/// Bins of the distance KDE (the last bin takes everything beyond [`Config::kde_range_m`]).
+pub const KDE_BINS: usize = 120;
+
+/// Pair-bin code: never linked (static with moving, or static across segments).
+const NO_PAIR: u8 = 255;
+/// Flag bit set on the bin of a moving pair across two segments.
+const ACROSS: u8 = 0x80;
+const _: () = assert!((KDE_BINS as u8 - 1) | ACROSS < NO_PAIR && KDE_BINS < 0x80);
+
+/// A group of frames that move as one rigid body.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GroupInfo {
+    /// Frames in the group.
+    pub frames: u32,
+    /// Mean spatial twist of the members (space frame of the step).
+    pub twist: Twist,
+    /// Whether the mean twist is above the noise floor.
+    pub moving: bool,
+}
+
+/// Scratch for [`group_frames`]. Contents are garbage after the call.
+#[derive(Debug)]
+pub struct GroupScratch<'a> {
+    /// One byte per frame pair, `n(n−1)/2` entries.
+    pub pair_bin: &'a mut [u8],
+    /// Union-find parents, then group ids; `n` entries.
+    pub parent: &'a mut [u32],
+    /// Link counts (density), then group ids by root; `n` entries.
+    pub links: &'a mut [u32],
+    /// Quick-shift parent of each frame, then its group root; `n` entries.
+    pub attach: &'a mut [u32],
+}
+
+/// Element counts [`GroupScratch`] needs; `const` so bare-metal callers can size `static`s.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GroupScratchLen {
+    /// Length of [`GroupScratch::pair_bin`].
+    pub pair_bin: usize,
+    /// Length of [`GroupScratch::parent`], [`GroupScratch::links`] and
+    /// [`GroupScratch::attach`].
+    pub per_frame: usize,
+}
+
+impl GroupScratchLen {
+    /// Lengths for up to `n` frames.
+    #[must_use]
+    pub const fn for_frames(n: usize) -> Self {
+        Self {
+            pair_bin: n * n.saturating_sub(1) / 2,
+            per_frame: n,
+        }
+    }
+
+    /// Bytes the scratch takes.
+    #[must_use]
+    pub const fn bytes(&self) -> usize {
+        self.pair_bin + 12 * self.per_frame
+    }
+}
+
+/// What [`group_frames`] found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Grouping {
+    /// Groups written to the front of the `groups` slice.
+    pub count: usize,
+    /// The distance at which the KDE splits near from far pairs, metres (`None`: no
+    /// valley, every moving pair counted as near).
+    pub split_m: Option<Real>,
+}
+
+/// GroupBFIFs: assigns each frame a group id (`< count`) or [`NO_GROUP`].
+///
+/// `labels[i]` is the accumulated-mask label of frame `i`. Writes `frame_group[..n]` and
+/// `groups[..count]`.
+///
+/// # Errors
+/// [`Error::SizeMismatch`] if `labels.len() != twists.len()`; [`Error::BufferTooSmall`] if
+/// `frame_group`, `groups` or a scratch slice is shorter than [`GroupScratchLen`] says
+/// (nothing is written then); [`Error::TooManyLabels`] if more than `u16::MAX - 1` groups
+/// form; [`Error::BadConfig`] if `cfg` fails [`Config::check`].
+pub fn group_frames(
+    twists: &[Twist],
+    labels: &[u16],
+    cfg: &Config,
+    scratch: GroupScratch<'_>,
+    frame_group: &mut [u16],
+    groups: &mut [GroupInfo],
+) -> Result<Grouping, Error> {
+    cfg.check()?;
+    let n = twists.len();
+    if labels.len() != n {
+        return Err(Error::SizeMismatch);
+    }
+    let need = GroupScratchLen::for_frames(n);
+    check_len(Buffer::PairDist, need.pair_bin, scratch.pair_bin.len())?;
+    check_len(Buffer::FrameScratch, n, scratch.parent.len())?;
+    check_len(Buffer::FrameScratch, n, scratch.links.len())?;
+    check_len(Buffer::FrameScratch, n, scratch.attach.len())?;
+    check_len(Buffer::Frames, n, frame_group.len())?;
+    check_len(Buffer::Groups, n, groups.len())?;
+    let pair_bin = &mut scratch.pair_bin[..need.pair_bin];
+    let parent = &mut scratch.parent[..n];
+    let links = &mut scratch.links[..n];
+    let attach = &mut scratch.attach[..n];
+
+    let scale = cfg.length_scale_m;
+    let floor2 = cfg.static_below_m * cfg.static_below_m;
+    let moving = |t: &Twist| t.norm_squared(scale) >= floor2;
+
+    // Pass 1: bins and histograms (index 0: inside one segment, 1: across).
+    let bin_width = cfg.kde_range_m / KDE_BINS as Real;
+    let mut hist = [[0u32; KDE_BINS]; 2];
+    let mut pair = 0;
+    for (i, (ti, li)) in twists.iter().zip(labels).enumerate() {
+        let mi = moving(ti);
+        for (tj, lj) in twists.iter().zip(labels).skip(i + 1) {
+            let across = li != lj;
+            // Across segments only pairs of moving frames are data.
+            let code = if across && !(mi && moving(tj)) {
+                NO_PAIR
+            } else {
+                let b = floor(ti.distance(tj, scale) / bin_width);
+                let b = if b.is_finite() && b < KDE_BINS as Real {
+                    b as usize
+                } else {
+                    KDE_BINS - 1
+                };
+                if let Some(h) = hist[usize::from(across)].get_mut(b) {
+                    *h += 1;
+                }
+                b as u8 | if across { ACROSS } else { 0 }
+            };
+            if let Some(slot) = pair_bin.get_mut(pair) {
+                *slot = code;
+            }
+            pair += 1;
+        }
+    }
+
+    let (posterior, split) = posterior_table(&hist, cfg);
+    // Frames link inside one segment only; across pairs inform the KDE and priors.
+    let linked = |code: u8| match code {
+        NO_PAIR => None,
+        c if c & ACROSS != 0 => None,
+        c => {
+            let p = posterior[usize::from(c & ACROSS != 0)][usize::from(c & !ACROSS) % KDE_BINS];
+            (p > cfg.link_posterior).then_some(p)
+        }
+    };
+
+    // Pass 2: density of each frame = its number of links.
+    let density = links;
+    density.fill(0);
+    for_each_pair(n, pair_bin, |i, j, code| {
+        if linked(code).is_some() {
+            bump(density, i);
+            bump(density, j);
+        }
+    });
+    // Pass 3 (quick shift): each frame points at its nearest linked frame of higher
+    // density; ties in distance go to the denser frame. Only a mode has no such frame.
+    let rank =
+        |density: &[u32], i: usize| (density.get(i).copied().unwrap_or(0), u32::MAX - i as u32);
+    let nearness = |code: u8| code & !ACROSS;
+    attach.fill(NONE);
+    for_each_pair(n, pair_bin, |i, j, code| {
+        if linked(code).is_none() {
+            return;
+        }
+        let (low, high) = if rank(density, i) < rank(density, j) {
+            (i, j)
+        } else {
+            (j, i)
+        };
+        let Some(current) = attach.get(low).copied() else {
+            return;
+        };
+        let better = current == NONE
+            || pair_code(pair_bin, n, low, current as usize).is_none_or(|c| {
+                let (d_new, d_old) = (nearness(code), nearness(c));
+                d_new < d_old
+                    || (d_new == d_old && rank(density, high) > rank(density, current as usize))
+            });
+        if better {
+            if let Some(a) = attach.get_mut(low) {
+                *a = high as u32;
+            }
+        }
+    });
+    for (i, p) in parent.iter_mut().enumerate() {
+        *p = i as u32;
+    }
+    for i in 0..n {
+        if let Some(&up) = attach.get(i) {
+            if up != NONE {
+                union(parent, i, up as usize);
+            }
+        }
+    }
+    for (i, root) in attach.iter_mut().enumerate() {
+        *root = find(parent, i);
+    }
+    let count = finish_groups(twists, cfg, attach, density, frame_group, groups)?;
+    Ok(Grouping {
+        count,
+        split_m: split.map(|b| b as Real * bin_width),
+    })
+}
+
+const NONE: u32 = u32::MAX;
+
+fn bump(counts: &mut [u32], i: usize) {
+    if let Some(c) = counts.get_mut(i) {
+        *c = c.saturating_add(1);
+    }
+}
+
+/// Calls `f(i, j, code)` for every pair `i < j` in the order pass 1 stored them.
+fn for_each_pair(n: usize, pair_bin: &[u8], mut f: impl FnMut(usize, usize, u8)) {
+    let mut codes = pair_bin.iter();
+    for i in 0..n {
+        for j in i + 1..n {
+            let Some(&code) = codes.next() else { return };
+            f(i, j, code);
+        }
+    }
+}
+
+/// The stored code of pair `{a, b}` (`a != b`).
+fn pair_code(pair_bin: &[u8], n: usize, a: usize, b: usize) -> Option<u8> {
+    let (i, j) = if a < b { (a, b) } else { (b, a) };
+    if i == j || j >= n {
+        return None;
+    }
+    // Pairs (i, ·) start after the i rows before it: i·n − i(i+1)/2.
+    let start = i * n - i * (i + 1) / 2;
+    pair_bin.get(start + (j - i - 1)).copied()
+}
+
+fn find(parent: &mut [u32], mut i: usize) -> u32 {
+    // Path halving; parents always point to valid indices (they start as i, union keeps them).
+    while let Some(&p) = parent.get(i) {
+        if p as usize == i {
+            break;
+        }
+        let grand = parent.get(p as usize).copied().unwrap_or(p);
+        if let Some(slot) = parent.get_mut(i) {
+            *slot = grand;
+        }
+        i = grand as usize;
+    }
+    i as u32
+}
+
+fn union(parent: &mut [u32], a: usize, b: usize) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    // The smaller root wins, so ids do not depend on the order links are seen in.
+    let (keep, drop) = if ra < rb { (ra, rb) } else { (rb, ra) };
+    if let Some(slot) = parent.get_mut(drop as usize) {
+        *slot = keep;
+    }
+}
+
+/// Dense group ids in root order, small groups dropped, mean twists.
+fn finish_groups(
+    twists: &[Twist],
+    cfg: &Config,
+    root_of: &[u32],
+    scratch: &mut [u32],
+    frame_group: &mut [u16],
+    groups: &mut [GroupInfo],
+) -> Result<usize, Error> {
+    scratch.fill(0);
+    for &r in root_of {
+        if r != NONE {
+            bump(scratch, r as usize);
+        }
+    }
+    let mut count = 0usize;
+    for slot in scratch.iter_mut() {
+        if *slot >= cfg.min_group_frames.max(1) {
+            if count >= usize::from(NO_GROUP) {
+                return Err(Error::TooManyLabels);
+            }
+            if let Some(g) = groups.get_mut(count) {
+                *g = GroupInfo {
+                    frames: *slot,
+                    ..GroupInfo::default()
+                };
+            }
+            *slot = count as u32;
+            count += 1;
+        } else {
+            *slot = NONE;
+        }
+    }
+    for ((&r, twist), fg) in root_of.iter().zip(twists).zip(frame_group.iter_mut()) {
+        let gid = if r == NONE {
+            NONE
+        } else {
+            scratch.get(r as usize).copied().unwrap_or(NONE)
+        };
+        *fg = NO_GROUP;
+        if let Some(g) = groups.get_mut(gid as usize) {
+            g.twist.w += twist.w;
+            g.twist.v += twist.v;
+            *fg = gid as u16;
+        }
+    }
+    let floor2 = cfg.static_below_m * cfg.static_below_m;
+    for g in groups.iter_mut().take(count) {
+        let k = g.frames.max(1) as Real;
+        g.twist.w /= k;
+        g.twist.v /= k;
+        g.moving = g.twist.norm_squared(cfg.length_scale_m) >= floor2;
+    }
+    Ok(count)
+}
+
+/// Posterior `P(same body | bin, class)` for class 0 (one segment) and 1 (across), and the
+/// valley bin that splits near from far (`None`: no valley).
+fn posterior_table(
+    hist: &[[u32; KDE_BINS]; 2],
+    cfg: &Config,
+) -> ([[Real; KDE_BINS]; 2], Option<usize>) {
+    let sigma_bins = cfg.kde_bandwidth_m / (cfg.kde_range_m / KDE_BINS as Real);
+    let mut all = [0.0 as Real; KDE_BINS];
+    for (a, (h0, h1)) in all.iter_mut().zip(hist[0].iter().zip(&hist[1])) {
+        *a = (*h0 + *h1) as Real;
+    }
+    let density = smooth(&all, sigma_bins, 0, KDE_BINS);
+    let split = first_valley(&density);
+    let cut = split.unwrap_or(KDE_BINS);
+    // Likelihoods: the KDE of the near pairs and of the far pairs, each normalised; the far
+    // one gets a small uniform floor so that a distance no pair showed is "different".
+    let near = normalised(smooth(&all, sigma_bins, 0, cut), 0.0);
+    let far = normalised(smooth(&all, sigma_bins, cut, KDE_BINS), 1e-3);
+    let mut table = [[0.0; KDE_BINS]; 2];
+    for (class, row) in table.iter_mut().enumerate() {
+        let h = &hist[class];
+        let total: u64 = h.iter().map(|&c| u64::from(c)).sum();
+        let near_count: u64 = h.iter().take(cut).map(|&c| u64::from(c)).sum();
+        let prior = (near_count as Real + 1.0) / (total as Real + 2.0);
+        for (p, (g, f)) in row.iter_mut().zip(near.iter().zip(&far)) {
+            let a = prior * g;
+            let b = (1.0 - prior) * f;
+            *p = if a + b > 0.0 { a / (a + b) } else { 0.0 };
+        }
+    }
+    (table, split)
+}
+
+/// Gaussian KDE on bins `[from, to)` of a histogram (other bins count zero).
+fn smooth(hist: &[Real; KDE_BINS], sigma_bins: Real, from: usize, to: usize) -> [Real; KDE_BINS] {
+    let sigma = sigma_bins.max(0.5);
+    let reach = (3.0 * sigma) as usize + 1;
+    let mut kernel = [0.0 as Real; KDE_BINS];
+    for (d, k) in kernel.iter_mut().enumerate().take(reach.min(KDE_BINS)) {
+        let x = d as Real / sigma;
+        *k = exp(-0.5 * x * x);
+    }
+    let mut out = [0.0; KDE_BINS];
+    for (b, &count) in hist.iter().enumerate().take(to).skip(from) {
+        if count == 0.0 {
+            continue;
+        }
+        for (o, slot) in out.iter_mut().enumerate() {
+            let d = b.abs_diff(o);
+            if let Some(k) = kernel.get(d) {
+                *slot += count * k;
+            }
+        }
+    }
+    out
+}
+
+fn normalised(mut density: [Real; KDE_BINS], uniform_share: Real) -> [Real; KDE_BINS] {
+    let total: Real = density.iter().sum();
+    let u = 1.0 / KDE_BINS as Real;
+    for d in &mut density {
+        let p = if total > 0.0 { *d / total } else { u };
+        *d = (1.0 - uniform_share) * p + uniform_share * u;
+    }
+    density
+}
+
+/// The first clear valley after the first peak: a bin whose density is at most 2/3 of a
+/// later bin's and of the peak's. `None` when the density only falls after its first peak.
+fn first_valley(density: &[Real; KDE_BINS]) -> Option<usize> {
+    let peak_level = density.iter().copied().fold(0.0, Real::max);
+    if peak_level <= 0.0 {
+        return None;
+    }
+    let mut b = 0;
+    while b + 1 < KDE_BINS && density.get(b + 1) >= density.get(b) {
+        b += 1;
+    }
+    let first_peak = density.get(b).copied().unwrap_or(0.0);
+    let (mut low_bin, mut low) = (b, first_peak);
+    for (i, &d) in density.iter().enumerate().skip(b + 1) {
+        if d < low {
+            (low_bin, low) = (i, d);
+        } else if d > 1.5 * low && d > 0.02 * peak_level && low < first_peak / 1.5 {
+            return Some(low_bin);
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use std::{vec, vec::Vec};
+
+    use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
+
+    use super::*;
+    use crate::{Pose, frames::BodyFrame, rng::Pcg32};
+
+    /// Roughly normal noise (Irwin-Hall with 12 uniforms), standard deviation `sigma`.
+    fn noise(rng: &mut Pcg32, sigma: Real) -> Vector3<Real> {
+        let mut n = || (0..12).map(|_| rng.unit()).sum::<Real>() - 6.0;
+        Vector3::new(n(), n(), n()) * sigma
+    }
+
+    /// `count` frames on a body centred at `centre`, moved by `motion`, with point noise.
+    fn frames_on(
+        rng: &mut Pcg32,
+        centre: Point3<Real>,
+        motion: &Pose,
+        count: usize,
+        sigma_m: Real,
+    ) -> Vec<BodyFrame> {
+        (0..count)
+            .map(|_| {
+                let o = centre + Vector3::new(rng.unit() - 0.5, rng.unit() - 0.5, 0.0) * 0.05;
+                let p_t = [
+                    o,
+                    o + Vector3::new(0.025, 0.004, 0.0),
+                    o + Vector3::new(0.006, 0.022, 0.002),
+                ];
+                let p_t1 = p_t.map(|p| motion * p + noise(rng, sigma_m));
+                let p_t = p_t.map(|p| p + noise(rng, sigma_m));
+                BodyFrame {
+                    p_t,
+                    p_t1,
+                    ..BodyFrame::EMPTY
+                }
+            })
+            .collect()
+    }
+
+    struct Run {
+        frame_group: Vec<u16>,
+        groups: Vec<GroupInfo>,
+    }
+
+    fn run(frames: &[BodyFrame], labels: &[u16], origin: &Point3<Real>) -> Run {
+        let n = frames.len();
+        let twists: Vec<Twist> = frames.iter().map(|f| f.twist(origin).unwrap()).collect();
+        let len = GroupScratchLen::for_frames(n);
+        let (mut pair_bin, mut parent, mut links, mut attach) =
+            (vec![0u8; len.pair_bin], vec![0; n], vec![0; n], vec![0; n]);
+        let mut frame_group = vec![0; n];
+        let mut groups = vec![GroupInfo::default(); n];
+        let scratch = GroupScratch {
+            pair_bin: &mut pair_bin,
+            parent: &mut parent,
+            links: &mut links,
+            attach: &mut attach,
+        };
+        let g = group_frames(
+            &twists,
+            labels,
+            &Config::PAPER,
+            scratch,
+            &mut frame_group,
+            &mut groups,
+        )
+        .unwrap();
+        groups.truncate(g.count);
+        Run {
+            frame_group,
+            groups,
+        }
+    }
+
+    /// Share of frames whose group's majority body is their own body.
+    fn share_correct(frame_group: &[u16], body: &[usize], bodies: usize) -> Real {
+        let mut votes = std::collections::BTreeMap::<u16, Vec<usize>>::new();
+        for (&g, &b) in frame_group.iter().zip(body) {
+            votes.entry(g).or_insert_with(|| vec![0; bodies])[b] += 1;
+        }
+        let correct: usize = votes
+            .iter()
+            .filter(|(g, _)| **g != NO_GROUP)
+            .map(|(_, v)| *v.iter().max().unwrap())
+            .sum();
+        correct as Real / body.len() as Real
+    }
+
+    fn spin(centre: Point3<Real>, axis: Vector3<Real>, angle_rad: Real) -> Pose {
+        let r = UnitQuaternion::from_scaled_axis(axis.normalize() * angle_rad);
+        Pose::from_parts(Translation3::from(centre.coords - r * centre.coords), r)
+    }
+
+    #[test]
+    fn two_moving_bodies_in_one_segment_are_split() {
+        let mut rng = Pcg32::new(3);
+        let (ca, cb) = (Point3::new(-0.04, 0.0, 0.6), Point3::new(0.04, 0.0, 0.6));
+        let slide: Pose = Translation3::new(0.01, 0.0, 0.0).into();
+        let turn = spin(cb, Vector3::new(0.0, 0.2, -1.0), 5f32.to_radians());
+        let mut frames = frames_on(&mut rng, ca, &slide, 300, 3e-4);
+        frames.extend(frames_on(&mut rng, cb, &turn, 200, 3e-4));
+        let body: Vec<usize> = (0..500).map(|i| usize::from(i >= 300)).collect();
+        let labels = vec![1; 500];
+        let r = run(&frames, &labels, &Point3::new(0.0, 0.0, 0.6));
+        assert!(r.groups.len() >= 2, "{:?}", r.groups);
+        let share = share_correct(&r.frame_group, &body, 2);
+        assert!(share >= 0.95, "{share}");
+        assert!(r.groups.iter().all(|g| g.moving));
+    }
+
+    #[test]
+    fn one_rotating_body_is_never_split() {
+        for seed in 0..5 {
+            let mut rng = Pcg32::new(seed);
+            let c = Point3::new(0.02, -0.01, 0.62);
+            let turn = spin(c, Vector3::new(0.1, 0.0, 1.0), 8f32.to_radians());
+            let frames = frames_on(&mut rng, c, &turn, 400, 3e-4);
+            let r = run(&frames, &vec![7; 400], &Point3::new(0.0, 0.0, 0.6));
+            assert_eq!(r.groups.len(), 1, "seed {seed}: {:?}", r.groups);
+            let grouped = r.frame_group.iter().filter(|&&g| g == 0).count();
+            assert!(grouped >= 390, "seed {seed}: {grouped}");
+        }
+    }
+
+    #[test]
+    fn static_frames_never_join_across_segments() {
+        let mut rng = Pcg32::new(11);
+        let still = Pose::identity();
+        let nudge: Pose = Translation3::new(0.0005, 0.0, 0.0).into();
+        let mut frames = frames_on(&mut rng, Point3::new(-0.05, 0.0, 0.6), &still, 150, 3e-4);
+        frames.extend(frames_on(
+            &mut rng,
+            Point3::new(0.05, 0.0, 0.6),
+            &nudge,
+            150,
+            3e-4,
+        ));
+        let labels: Vec<u16> = (0..300).map(|i| if i < 150 { 1 } else { 2 }).collect();
+        let r = run(&frames, &labels, &Point3::new(0.0, 0.0, 0.6));
+        for (g, info) in r.groups.iter().enumerate() {
+            assert!(!info.moving);
+            let members: Vec<u16> = (0..300)
+                .filter(|&i| usize::from(r.frame_group[i]) == g)
+                .map(|i| labels[i])
+                .collect();
+            assert!(
+                members.windows(2).all(|w| w[0] == w[1]),
+                "group {g} spans segments"
+            );
+        }
+        assert!(r.groups.len() >= 2);
+    }
+
+    #[test]
+    fn pair_codes_are_found_where_pass_one_wrote_them() {
+        let n = 7;
+        let mut bins = vec![0u8; n * (n - 1) / 2];
+        let mut k = 0;
+        for i in 0..n {
+            for j in i + 1..n {
+                bins[k] = (10 * i + j) as u8;
+                k += 1;
+            }
+        }
+        assert_eq!(pair_code(&bins, n, 2, 5), Some(25));
+        assert_eq!(pair_code(&bins, n, 6, 0), Some(6));
+        assert_eq!(pair_code(&bins, n, 3, 3), None);
+        assert_eq!(pair_code(&bins, n, 3, 9), None);
+    }
+
+    #[test]
+    fn short_scratch_is_an_error() {
+        let twists = [Twist::ZERO; 4];
+        let mut small = [0u8; 2];
+        let (mut a, mut b, mut c) = ([0; 4], [0; 4], [0; 4]);
+        let scratch = GroupScratch {
+            pair_bin: &mut small,
+            parent: &mut a,
+            links: &mut b,
+            attach: &mut c,
+        };
+        let r = group_frames(
+            &twists,
+            &[1; 4],
+            &Config::PAPER,
+            scratch,
+            &mut [0; 4],
+            &mut [GroupInfo::default(); 4],
+        );
+        assert!(matches!(
+            r,
+            Err(Error::BufferTooSmall {
+                buffer: Buffer::PairDist,
+                needed: 6,
+                got: 2
+            })
+        ));
+    }
+}

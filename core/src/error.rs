@@ -24,6 +24,8 @@ pub enum Buffer {
     Segments,
     /// Output labels.
     Labels,
+    /// Seed scratch of CorrectMask.
+    Seeds,
     /// Clustering scratch of FindAction.
     Clusters,
 }

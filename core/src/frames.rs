@@ -411,7 +411,10 @@ fn build_frame(
     for (p, q) in [(0, 1), (0, 2), (1, 2)] {
         let before = (pts[p].p_t - pts[q].p_t).norm();
         let after = (pts[p].p_t1 - pts[q].p_t1).norm();
-        if !((after - before).abs() <= cfg.frame_rigid_tol_m) {
+        // NaN fails the check too.
+        if (after - before).abs().partial_cmp(&cfg.frame_rigid_tol_m)
+            != Some(core::cmp::Ordering::Less)
+        {
             return None;
         }
     }

@@ -118,7 +118,7 @@ pub fn group_frames(
     twists: &[Twist],
     labels: &[u16],
     cfg: &Config,
-    scratch: GroupScratch<'_>,
+    scratch: &mut GroupScratch<'_>,
     frame_group: &mut [u16],
     groups: &mut [GroupInfo],
 ) -> Result<Grouping, Error> {
@@ -217,20 +217,18 @@ pub fn group_frames(
                 d_new < d_old
                     || (d_new == d_old && rank(density, high) > rank(density, current as usize))
             });
-        if better {
-            if let Some(a) = attach.get_mut(low) {
-                *a = high as u32;
-            }
+        if better && let Some(a) = attach.get_mut(low) {
+            *a = high as u32;
         }
     });
     for (i, p) in parent.iter_mut().enumerate() {
         *p = i as u32;
     }
     for i in 0..n {
-        if let Some(&up) = attach.get(i) {
-            if up != NONE {
-                union(parent, i, up as usize);
-            }
+        if let Some(&up) = attach.get(i)
+            && up != NONE
+        {
+            union(parent, i, up as usize);
         }
     }
     for (i, root) in attach.iter_mut().enumerate() {
@@ -498,7 +496,7 @@ mod tests {
             (vec![0u8; len.pair_bin], vec![0; n], vec![0; n], vec![0; n]);
         let mut frame_group = vec![0; n];
         let mut groups = vec![GroupInfo::default(); n];
-        let scratch = GroupScratch {
+        let mut scratch = GroupScratch {
             pair_bin: &mut pair_bin,
             parent: &mut parent,
             links: &mut links,
@@ -508,7 +506,7 @@ mod tests {
             &twists,
             labels,
             &Config::PAPER,
-            scratch,
+            &mut scratch,
             &mut frame_group,
             &mut groups,
         )
@@ -621,7 +619,7 @@ mod tests {
         let twists = [Twist::ZERO; 4];
         let mut small = [0u8; 2];
         let (mut a, mut b, mut c) = ([0; 4], [0; 4], [0; 4]);
-        let scratch = GroupScratch {
+        let mut scratch = GroupScratch {
             pair_bin: &mut small,
             parent: &mut a,
             links: &mut b,
@@ -631,7 +629,7 @@ mod tests {
             &twists,
             &[1; 4],
             &Config::PAPER,
-            scratch,
+            &mut scratch,
             &mut [0; 4],
             &mut [GroupInfo::default(); 4],
         );

@@ -1,0 +1,551 @@
+//! CorrectMask: carry the accumulated mask to `t+1`, intersect it with the new static mask,
+//! and split segments whose frames fell into two or more motion groups.
+//!
+//! Contract, in order:
+//! 1. **Carry.** Every labelled pixel of the accumulated mask at `t` with a depth reading is
+//!    splatted to its rounded flow target; where two labels land on one pixel the nearer
+//!    depth (at `t`) wins. Each target remembers its source pixel.
+//! 2. **Intersect.** The static mask at `t+1` decides foreground. Foreground pixels are
+//!    keyed by (carried label, static label); the 4-connected components of equal keys are
+//!    the segments, so a split in either mask is kept. Segments smaller than
+//!    [`Config::min_segment_px`] join their largest neighbouring segment.
+//! 3. **Seed.** Each grouped frame marks its three tracked pixels at `t+1` with its group.
+//!    A segment holding seeds of two or more groups is split; others are left as they are.
+//! 4. **Grow.** In a split segment, regions grow breadth-first from the seeds to
+//!    4-neighbours whose observed flow matches the flow the group's rigid motion predicts
+//!    (back-project the source pixel at `t`, move it by the group's `M`, project; residual
+//!    within [`Config::grow_tol_px`]). A pixel that several groups explain goes to the one
+//!    with the smallest residual. Rotations are handled because `M` is a full rigid motion.
+//! 5. **Label.** Every group but the largest (most seeds) of a split segment gets a new
+//!    label; the largest keeps the segment's label, and so do pixels no group explains.
+//!    Fragments smaller than [`Config::min_segment_px`] left by the growth join their
+//!    largest neighbour.
+//!
+//! Labels of the output are `1..` in scan order of the segments; background is `0`.
+
+use nalgebra::{Point3, Translation3};
+
+use crate::{
+    Config, Error, ImageView, Pose,
+    error::{Buffer, check_len},
+    frames::{BodyFrame, MotionInput},
+    group::{GroupInfo, NO_GROUP},
+    image::valid_depth,
+    math::{Real, round, sqrt},
+};
+
+/// Most segments one step can hold (labels are `u16`, `0` is background).
+pub const MAX_SEGMENTS: usize = u16::MAX as usize;
+
+const NONE: u32 = u32::MAX;
+
+/// The frame groups CorrectMask seeds from (outputs of CreateFrames and GroupBFIFs).
+#[derive(Debug, Clone, Copy)]
+pub struct FrameGroups<'a> {
+    /// The frames.
+    pub frames: &'a [BodyFrame],
+    /// Group of each frame, or [`NO_GROUP`].
+    pub frame_group: &'a [u16],
+    /// The groups; twists are in the space frame at `space_origin`.
+    pub groups: &'a [GroupInfo],
+    /// Origin of the space frame the twists are expressed in, camera frame.
+    pub space_origin: Point3<Real>,
+}
+
+/// Scratch for [`correct_mask`]. Contents are garbage after the call.
+#[derive(Debug)]
+pub struct MaskScratch<'a> {
+    /// Depth of the label splatted to each pixel; `width·height`.
+    pub splat_depth: &'a mut [f32],
+    /// Source pixel at `t` of each pixel at `t+1`; `width·height`.
+    pub source: &'a mut [u32],
+    /// Segment id of each pixel; `width·height`.
+    pub segment: &'a mut [u32],
+    /// Breadth-first queue; `width·height`.
+    pub queue: &'a mut [u32],
+    /// Group that claimed each pixel while growing (`0`: none); `width·height`.
+    pub claim: &'a mut [u16],
+    /// Per-segment sizes, merge targets and keys; [`MAX_SEGMENTS`]` + 1` each.
+    pub segment_size: &'a mut [u32],
+    /// See [`MaskScratch::segment_size`].
+    pub segment_target: &'a mut [u32],
+    /// See [`MaskScratch::segment_size`].
+    pub segment_key: &'a mut [u32],
+    /// `(segment, group, seeds)` triples; three per frame.
+    pub seeds: &'a mut [[u32; 3]],
+    /// Rigid motion of each group in the camera frame; one per frame.
+    pub motions: &'a mut [Pose],
+}
+
+/// Element counts [`MaskScratch`] needs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MaskScratchLen {
+    /// Length of each per-pixel slice.
+    pub pixels: usize,
+    /// Length of each per-segment slice.
+    pub segments: usize,
+    /// Length of [`MaskScratch::seeds`].
+    pub seeds: usize,
+    /// Length of [`MaskScratch::motions`].
+    pub motions: usize,
+}
+
+impl MaskScratchLen {
+    /// Lengths for a `width × height` image and up to `frames` frames.
+    #[must_use]
+    pub const fn new(width: usize, height: usize, frames: usize) -> Self {
+        Self {
+            pixels: width.saturating_mul(height),
+            segments: MAX_SEGMENTS + 1,
+            seeds: frames.saturating_mul(3),
+            motions: frames,
+        }
+    }
+
+    /// Bytes the scratch takes.
+    #[must_use]
+    pub const fn bytes(&self) -> usize {
+        self.pixels * (4 * 4 + 2)
+            + self.segments * 12
+            + self.seeds * 12
+            + self.motions * core::mem::size_of::<Pose>()
+    }
+}
+
+/// What [`correct_mask`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MaskReport {
+    /// Segments after intersecting the carried and static masks.
+    pub segments: usize,
+    /// Segments that two or more groups split.
+    pub split_segments: usize,
+    /// Largest label written.
+    pub max_label: u16,
+}
+
+/// CorrectMask: writes the corrected mask at `t+1` into `labels_t1` (row-major, packed).
+///
+/// # Errors
+/// [`Error::SizeMismatch`] if `static_t1` differs in size from `input` or the group slices
+/// disagree; [`Error::BufferTooSmall`] if `labels_t1` or a scratch slice is shorter than
+/// [`MaskScratchLen`] says (nothing is written then); [`Error::TooManyLabels`] if the
+/// segments do not fit `u16` labels; [`Error::BadConfig`] if `cfg` fails [`Config::check`].
+pub fn correct_mask(
+    input: &MotionInput<'_>,
+    static_t1: &ImageView<'_, u16>,
+    groups: &FrameGroups<'_>,
+    cfg: &Config,
+    scratch: &mut MaskScratch<'_>,
+    labels_t1: &mut [u16],
+) -> Result<MaskReport, Error> {
+    cfg.check()?;
+    let (width, height) = input.size();
+    if static_t1.size() != (width, height) || groups.frame_group.len() != groups.frames.len() {
+        return Err(Error::SizeMismatch);
+    }
+    let need = MaskScratchLen::new(width, height, groups.frames.len());
+    let n = need.pixels;
+    check_len(Buffer::Labels, n, labels_t1.len())?;
+    for len in [
+        scratch.splat_depth.len(),
+        scratch.source.len(),
+        scratch.segment.len(),
+        scratch.claim.len(),
+    ] {
+        check_len(Buffer::Pixels, n, len)?;
+    }
+    check_len(Buffer::Queue, n, scratch.queue.len())?;
+    for len in [
+        scratch.segment_size.len(),
+        scratch.segment_target.len(),
+        scratch.segment_key.len(),
+    ] {
+        check_len(Buffer::Segments, need.segments, len)?;
+    }
+    check_len(Buffer::Seeds, need.seeds, scratch.seeds.len())?;
+    check_len(Buffer::Groups, groups.groups.len(), scratch.motions.len())?;
+    let grid = Grid { width, height };
+    let labels_t1 = &mut labels_t1[..n];
+    let source = &mut scratch.source[..n];
+    let segment = &mut scratch.segment[..n];
+    let queue = &mut scratch.queue[..n];
+    let claim = &mut scratch.claim[..n];
+    let mut segs = Segments {
+        size: &mut *scratch.segment_size,
+        target: &mut *scratch.segment_target,
+        key: &mut *scratch.segment_key,
+    };
+
+    // 1. Carry: labels_t1 temporarily holds the carried labels.
+    splat(input, &mut scratch.splat_depth[..n], source, labels_t1);
+
+    // 2. Intersect.
+    let static_key = |i: usize| {
+        let s = static_t1.get(i % width, i / width).copied().unwrap_or(0);
+        let c = labels_t1.get(i).copied().unwrap_or(0);
+        if s == 0 {
+            0
+        } else {
+            (u32::from(c) << 16) | u32::from(s)
+        }
+    };
+    let count = label_segments(
+        grid,
+        static_key,
+        cfg.min_segment_px,
+        segment,
+        queue,
+        &mut segs,
+    )?;
+
+    // 3. Seed: (segment, group, count) runs.
+    let seed_count = collect_seeds(grid, groups, segment, &mut *scratch.seeds);
+    let seeds = &mut scratch.seeds[..seed_count];
+    let motions = &mut scratch.motions[..groups.groups.len()];
+    let to_camera = Translation3::from(groups.space_origin.coords);
+    for (m, g) in motions.iter_mut().zip(groups.groups) {
+        *m = to_camera * g.twist.exp() * to_camera.inverse();
+    }
+
+    // 4. Grow, in every segment with two or more groups.
+    claim.fill(0);
+    let mut head = 0;
+    let mut tail = 0;
+    for f in 0..groups.frames.len() {
+        let (Some(frame), Some(&g)) = (groups.frames.get(f), groups.frame_group.get(f)) else {
+            continue;
+        };
+        for px in frame.px_t1 {
+            let Some(i) = grid.index(px) else { continue };
+            let seg = segment.get(i).copied().unwrap_or(0);
+            let run = groups_in(seeds, seg);
+            if seg == 0 || run.len() < 2 || !run.iter().any(|s| s[1] == u32::from(g)) {
+                continue;
+            }
+            if let (Some(c @ 0), Some(q)) = (claim.get_mut(i), queue.get_mut(tail)) {
+                *c = g + 1;
+                *q = i as u32;
+                tail += 1;
+            }
+        }
+    }
+    let residual = |i: usize, g: usize| -> Option<Real> {
+        let s = source.get(i).copied().filter(|&s| s != NONE)? as usize;
+        let (u, v) = ((s % width) as Real, (s / width) as Real);
+        let z = valid_depth(input.depth_t.get(s % width, s / width).copied()?)?;
+        let [dx, dy] = input.flow.get(s % width, s / width).copied()?;
+        let moved = motions.get(g)? * input.intrinsics.back_project(u, v, z);
+        let predicted = input.intrinsics.project(&moved)?;
+        let (ex, ey) = (predicted.x - (u + dx), predicted.y - (v + dy));
+        Some(sqrt(ex * ex + ey * ey))
+    };
+    while head < tail {
+        let Some(&i) = queue.get(head) else { break };
+        head += 1;
+        let i = i as usize;
+        let (Some(&seg), Some(&mine)) = (segment.get(i), claim.get(i)) else {
+            continue;
+        };
+        let mine = usize::from(mine).saturating_sub(1);
+        let candidates = groups_in(seeds, seg);
+        for j in grid.neighbours(i) {
+            if segment.get(j) != Some(&seg) || claim.get(j) != Some(&0) {
+                continue;
+            }
+            // Holes of the splat have no observation; the region flows through them.
+            let accept = match residual(j, mine) {
+                None => source.get(j) == Some(&NONE),
+                Some(r) => {
+                    r <= cfg.grow_tol_px
+                        && candidates.iter().all(|&[_, g, _]| {
+                            g as usize == mine || residual(j, g as usize).is_none_or(|o| r <= o)
+                        })
+                }
+            };
+            if accept && let (Some(c), Some(q)) = (claim.get_mut(j), queue.get_mut(tail)) {
+                *c = mine as u16 + 1;
+                *q = j as u32;
+                tail += 1;
+            }
+        }
+    }
+
+    // 5. Label: segment s keeps label s; extra groups of split segments get new labels.
+    let mut next = count as u32 + 1;
+    let mut split_segments = 0;
+    let mut start = 0;
+    while start < seeds.len() {
+        let seg = seeds.get(start).map_or(0, |s| s[0]);
+        let run = groups_in(seeds, seg);
+        let end = start + run.len().max(1);
+        if run.len() >= 2 {
+            split_segments += 1;
+            let largest = run
+                .iter()
+                .max_by_key(|s| (s[2], u32::MAX - s[1]))
+                .map_or(NONE, |s| s[1]);
+            for entry in seeds.get_mut(start..end).unwrap_or(&mut []) {
+                entry[2] = if entry[1] == largest {
+                    seg
+                } else {
+                    next += 1;
+                    next - 1
+                };
+            }
+        }
+        start = end;
+    }
+    if next > MAX_SEGMENTS as u32 + 1 {
+        return Err(Error::TooManyLabels);
+    }
+    for ((out, &seg), &c) in labels_t1.iter_mut().zip(segment.iter()).zip(claim.iter()) {
+        *out = seg as u16;
+        if c != 0 {
+            let g = u32::from(c - 1);
+            if let Some(entry) = groups_in(seeds, seg).iter().find(|s| s[1] == g) {
+                *out = entry[2] as u16;
+            }
+        }
+    }
+    let grown_key = |i: usize| u32::from(labels_t1.get(i).copied().unwrap_or(0));
+    label_segments(
+        grid,
+        grown_key,
+        cfg.min_segment_px,
+        segment,
+        queue,
+        &mut segs,
+    )?;
+    let mut max_label = 0;
+    for (out, &seg) in labels_t1.iter_mut().zip(segment.iter()) {
+        *out = segs.key.get(seg as usize).copied().unwrap_or(0) as u16;
+        max_label = max_label.max(*out);
+    }
+    Ok(MaskReport {
+        segments: count,
+        split_segments,
+        max_label,
+    })
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Grid {
+    width: usize,
+    height: usize,
+}
+
+impl Grid {
+    fn index(&self, px: [Real; 2]) -> Option<usize> {
+        let (u, v) = (round(px[0]), round(px[1]));
+        let inside = u >= 0.0 && v >= 0.0 && u < self.width as Real && v < self.height as Real;
+        inside.then(|| v as usize * self.width + u as usize)
+    }
+
+    fn neighbours(&self, i: usize) -> impl Iterator<Item = usize> {
+        let (x, y) = (i % self.width, i / self.width);
+        let w = self.width;
+        [
+            (x > 0).then(|| i - 1),
+            (x + 1 < w).then(|| i + 1),
+            (y > 0).then(|| i - w),
+            (y + 1 < self.height).then(|| i + w),
+        ]
+        .into_iter()
+        .flatten()
+    }
+}
+
+/// Per-segment scratch arrays.
+struct Segments<'a> {
+    size: &'a mut [u32],
+    target: &'a mut [u32],
+    key: &'a mut [u32],
+}
+
+fn splat(input: &MotionInput<'_>, depth: &mut [f32], source: &mut [u32], carried: &mut [u16]) {
+    let (width, height) = input.size();
+    depth.fill(f32::INFINITY);
+    source.fill(NONE);
+    carried.fill(0);
+    for (x, y, &label) in input.labels_t.pixels() {
+        if label == 0 {
+            continue;
+        }
+        let (Some(z), Some([dx, dy])) = (
+            input.depth_t.get(x, y).copied().and_then(valid_depth),
+            input.flow.get(x, y).copied(),
+        ) else {
+            continue;
+        };
+        let (u, v) = (round(x as Real + dx), round(y as Real + dy));
+        if !(u >= 0.0 && v >= 0.0 && u < width as Real && v < height as Real) {
+            continue;
+        }
+        let i = v as usize * width + u as usize;
+        if let (Some(d), Some(s), Some(c)) =
+            (depth.get_mut(i), source.get_mut(i), carried.get_mut(i))
+            && z < *d
+        {
+            *d = z;
+            *s = (y * width + x) as u32;
+            *c = label;
+        }
+    }
+}
+
+/// 4-connected components of equal non-zero `key`, then components smaller than `min_px`
+/// join their largest neighbour. Writes final segment ids (`1..=count`, `0` background)
+/// to `segment` and each segment's key to `segs.key`.
+fn label_segments(
+    grid: Grid,
+    key: impl Fn(usize) -> u32,
+    min_px: u32,
+    segment: &mut [u32],
+    queue: &mut [u32],
+    segs: &mut Segments<'_>,
+) -> Result<usize, Error> {
+    segment.fill(0);
+    let mut count = 0usize;
+    for start in 0..segment.len() {
+        let k = key(start);
+        if k == 0 || segment.get(start) != Some(&0) {
+            continue;
+        }
+        count += 1;
+        if count > MAX_SEGMENTS {
+            return Err(Error::TooManyLabels);
+        }
+        let id = count as u32;
+        let (mut head, mut tail) = (0, 0);
+        if let (Some(s), Some(q)) = (segment.get_mut(start), queue.get_mut(0)) {
+            *s = id;
+            *q = start as u32;
+            tail = 1;
+        }
+        while head < tail {
+            let Some(&i) = queue.get(head) else { break };
+            head += 1;
+            for j in grid.neighbours(i as usize) {
+                if segment.get(j) == Some(&0)
+                    && key(j) == k
+                    && let (Some(s), Some(q)) = (segment.get_mut(j), queue.get_mut(tail))
+                {
+                    *s = id;
+                    *q = j as u32;
+                    tail += 1;
+                }
+            }
+        }
+        if let (Some(size), Some(kk)) = (segs.size.get_mut(count), segs.key.get_mut(count)) {
+            *size = tail as u32;
+            *kk = k;
+        }
+    }
+    // Largest neighbour of each small segment; merges only go to a (size, id)-larger
+    // segment, so following targets always ends.
+    let ranked = |segs: &Segments<'_>, s: u32| (segs.size.get(s as usize).copied().unwrap_or(0), s);
+    for t in segs.target.iter_mut().take(count + 1) {
+        *t = NONE;
+    }
+    for i in 0..segment.len() {
+        let a = segment.get(i).copied().unwrap_or(0);
+        let right = (i % grid.width + 1 < grid.width).then(|| i + 1);
+        let down = Some(i + grid.width);
+        for j in [right, down].into_iter().flatten() {
+            let Some(&b) = segment.get(j) else { continue };
+            if a == b || a == 0 || b == 0 {
+                continue;
+            }
+            for (small, big) in [(a, b), (b, a)] {
+                let small_size = segs.size.get(small as usize).copied().unwrap_or(0);
+                if small_size >= min_px || ranked(segs, big) <= ranked(segs, small) {
+                    continue;
+                }
+                let current = segs.target.get(small as usize).copied().unwrap_or(NONE);
+                if (current == NONE || ranked(segs, big) > ranked(segs, current))
+                    && let Some(t) = segs.target.get_mut(small as usize)
+                {
+                    *t = big;
+                }
+            }
+        }
+    }
+    for s in segment.iter_mut() {
+        let mut id = *s;
+        while let Some(&t) = segs.target.get(id as usize) {
+            if t == NONE || id == 0 {
+                break;
+            }
+            id = t;
+        }
+        *s = id;
+    }
+    Ok(count)
+}
+
+/// A group counts in a segment only with at least this many seed pixels (one frame).
+const MIN_SEEDS: u32 = 3;
+
+/// Writes sorted `(segment, group, seed count)` entries of the grouped frames' tracked
+/// pixels to the front of `seeds`, one per pair with at least [`MIN_SEEDS`]; returns how many.
+fn collect_seeds(
+    grid: Grid,
+    groups: &FrameGroups<'_>,
+    segment: &[u32],
+    seeds: &mut [[u32; 3]],
+) -> usize {
+    let mut len = 0;
+    for (frame, &g) in groups.frames.iter().zip(groups.frame_group) {
+        if g == NO_GROUP {
+            continue;
+        }
+        for px in frame.px_t1 {
+            let seg = grid
+                .index(px)
+                .and_then(|i| segment.get(i).copied())
+                .unwrap_or(0);
+            if let (true, Some(slot)) = (seg != 0, seeds.get_mut(len)) {
+                *slot = [seg, u32::from(g), 1];
+                len += 1;
+            }
+        }
+    }
+    let Some(seeds) = seeds.get_mut(..len) else {
+        return 0;
+    };
+    seeds.sort_unstable();
+    // Collapse equal (segment, group) entries, summing counts.
+    let mut out = 0usize;
+    for i in 0..seeds.len() {
+        let Some(&[s, g, c]) = seeds.get(i) else {
+            break;
+        };
+        match out.checked_sub(1).and_then(|p| seeds.get_mut(p)) {
+            Some(prev) if prev[0] == s && prev[1] == g => prev[2] += c,
+            _ => {
+                if let Some(slot) = seeds.get_mut(out) {
+                    *slot = [s, g, c];
+                }
+                out += 1;
+            }
+        }
+    }
+    let mut kept = 0;
+    for i in 0..out {
+        let Some(&entry) = seeds.get(i) else { break };
+        if entry[2] >= MIN_SEEDS {
+            if let Some(slot) = seeds.get_mut(kept) {
+                *slot = entry;
+            }
+            kept += 1;
+        }
+    }
+    kept
+}
+
+/// The `(segment, group, count)` entries of one segment.
+fn groups_in(seeds: &[[u32; 3]], seg: u32) -> &[[u32; 3]] {
+    let from = seeds.partition_point(|s| s[0] < seg);
+    let to = seeds.partition_point(|s| s[0] <= seg);
+    seeds.get(from..to).unwrap_or(&[])
+}

@@ -1,0 +1,528 @@
+//! One UpdateMask step (Algorithm 3) over a caller-owned [`Workspace`], and the loop state
+//! of Algorithm 1. No I/O: the caller brings images and executes pushes.
+//!
+//! A step is CreateFrames → CalcBFIFs → GroupBFIFs → CorrectMask; each stage is also
+//! callable on its own ([`create_frames`], [`compute_twists`], [`group_frames`],
+//! [`correct_mask`]) for per-stage timing or display.
+
+use crate::{
+    Config, Error, ImageView, Twist,
+    error::{Buffer, check_len},
+    frames::{BodyFrame, FrameSample, FrameSet, MotionInput, compute_twists, create_frames},
+    group::{GroupInfo, GroupScratch, GroupScratchLen, Grouping, group_frames},
+    mask::{FrameGroups, MaskReport, MaskScratch, MaskScratchLen, correct_mask},
+};
+
+/// All scratch and intermediate buffers of one step. Intermediate results (frames, twists,
+/// groups) stay readable after [`update_mask`] for display.
+#[derive(Debug)]
+pub struct Workspace<'a> {
+    /// CreateFrames scratch; [`Config::frame_samples`] entries.
+    pub samples: &'a mut [FrameSample],
+    /// Frames; [`Config::frame_samples`] entries.
+    pub frames: &'a mut [BodyFrame],
+    /// Twist of each frame; [`Config::frame_samples`] entries.
+    pub twists: &'a mut [Twist],
+    /// Accumulated-mask label of each frame; [`Config::frame_samples`] entries.
+    pub frame_labels: &'a mut [u16],
+    /// Group of each frame; [`Config::frame_samples`] entries.
+    pub frame_group: &'a mut [u16],
+    /// Groups; [`Config::frame_samples`] entries.
+    pub groups: &'a mut [GroupInfo],
+    /// GroupBFIFs scratch.
+    pub group: GroupScratch<'a>,
+    /// CorrectMask scratch.
+    pub mask: MaskScratch<'a>,
+}
+
+impl Workspace<'_> {
+    /// Checks every slice against `len`.
+    ///
+    /// # Errors
+    /// [`Error::BufferTooSmall`] naming the first slice that is too short.
+    pub fn check(&self, len: &WorkspaceLen) -> Result<(), Error> {
+        let n = len.frames;
+        check_len(Buffer::Samples, n, self.samples.len())?;
+        check_len(Buffer::Frames, n, self.frames.len())?;
+        for l in [
+            self.twists.len(),
+            self.frame_labels.len(),
+            self.frame_group.len(),
+        ] {
+            check_len(Buffer::FrameScratch, n, l)?;
+        }
+        check_len(Buffer::Groups, n, self.groups.len())?;
+        let g = &self.group;
+        check_len(Buffer::PairDist, len.group.pair_bin, g.pair_bin.len())?;
+        for l in [g.parent.len(), g.links.len(), g.attach.len()] {
+            check_len(Buffer::FrameScratch, len.group.per_frame, l)?;
+        }
+        let m = &self.mask;
+        let px = len.mask.pixels;
+        for l in [
+            m.splat_depth.len(),
+            m.source.len(),
+            m.segment.len(),
+            m.claim.len(),
+        ] {
+            check_len(Buffer::Pixels, px, l)?;
+        }
+        check_len(Buffer::Queue, px, m.queue.len())?;
+        for l in [
+            m.segment_size.len(),
+            m.segment_target.len(),
+            m.segment_key.len(),
+        ] {
+            check_len(Buffer::Segments, len.mask.segments, l)?;
+        }
+        check_len(Buffer::Seeds, len.mask.seeds, m.seeds.len())?;
+        check_len(Buffer::Groups, len.mask.motions, m.motions.len())
+    }
+}
+
+/// Element counts of every [`Workspace`] slice for a config and image size.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct WorkspaceLen {
+    /// Length of each per-frame slice (`samples` … `groups`).
+    pub frames: usize,
+    /// GroupBFIFs scratch lengths.
+    pub group: GroupScratchLen,
+    /// CorrectMask scratch lengths.
+    pub mask: MaskScratchLen,
+}
+
+impl WorkspaceLen {
+    /// Lengths for `cfg` at `width × height`.
+    #[must_use]
+    pub const fn for_config(cfg: &Config, width: usize, height: usize) -> Self {
+        let n = cfg.frame_samples;
+        Self {
+            frames: n,
+            group: GroupScratchLen::for_frames(n),
+            mask: MaskScratchLen::new(width, height, n),
+        }
+    }
+
+    /// Bytes the whole workspace takes.
+    #[must_use]
+    pub const fn bytes(&self) -> usize {
+        self.frames
+            * (core::mem::size_of::<FrameSample>()
+                + core::mem::size_of::<BodyFrame>()
+                + core::mem::size_of::<Twist>()
+                + 4
+                + core::mem::size_of::<GroupInfo>())
+            + self.group.bytes()
+            + self.mask.bytes()
+    }
+}
+
+/// What one step did, stage by stage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepReport {
+    /// CreateFrames.
+    pub frames: FrameSet,
+    /// GroupBFIFs.
+    pub grouping: Grouping,
+    /// CorrectMask.
+    pub mask: MaskReport,
+}
+
+/// UpdateMask (Algorithm 3): from the accumulated mask at `t` (in `input`), the static mask
+/// at `t+1` and the flow, writes the corrected mask at `t+1` to `labels_t1`.
+///
+/// # Errors
+/// [`Error::BufferTooSmall`] if a workspace slice is shorter than [`WorkspaceLen`] says
+/// (checked up front, nothing written); otherwise the errors of the stages.
+pub fn update_mask(
+    input: &MotionInput<'_>,
+    static_t1: &ImageView<'_, u16>,
+    cfg: &Config,
+    ws: &mut Workspace<'_>,
+    labels_t1: &mut [u16],
+) -> Result<StepReport, Error> {
+    cfg.check()?;
+    let (width, height) = input.size();
+    ws.check(&WorkspaceLen::for_config(cfg, width, height))?;
+    let frames = create_frames(input, cfg, ws.samples, ws.frames)?;
+    let count = frames.count;
+    let (Some(frame_list), Some(twists), Some(labels)) = (
+        ws.frames.get(..count),
+        ws.twists.get_mut(..count),
+        ws.frame_labels.get_mut(..count),
+    ) else {
+        return Err(Error::BufferTooSmall {
+            buffer: Buffer::Frames,
+            needed: count,
+            got: 0,
+        });
+    };
+    compute_twists(frame_list, &frames.space_origin, twists)?;
+    for (l, f) in labels.iter_mut().zip(frame_list) {
+        *l = f.label;
+    }
+    let frame_group = ws.frame_group.get_mut(..count).unwrap_or(&mut []);
+    let grouping = group_frames(twists, labels, cfg, &mut ws.group, frame_group, ws.groups)?;
+    let groups = FrameGroups {
+        frames: frame_list,
+        frame_group,
+        groups: ws.groups.get(..grouping.count).unwrap_or(&[]),
+        space_origin: frames.space_origin,
+    };
+    let mask = correct_mask(input, static_t1, &groups, cfg, &mut ws.mask, labels_t1)?;
+    Ok(StepReport {
+        frames,
+        grouping,
+        mask,
+    })
+}
+
+/// Loop state of Algorithm 1: counts pushes and decides when to stop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RisegLoop {
+    pushes_done: u32,
+    max_pushes: u32,
+    finished: bool,
+}
+
+impl RisegLoop {
+    /// A loop that will make at most `cfg.max_pushes` pushes.
+    #[must_use]
+    pub const fn new(cfg: &Config) -> Self {
+        Self {
+            pushes_done: 0,
+            max_pushes: cfg.max_pushes,
+            finished: false,
+        }
+    }
+
+    /// Takes FindAction's result for the current image: returns the push to execute, or
+    /// `None` when the loop stops (no action qualifies, or the push budget is spent). Once
+    /// stopped it stays stopped.
+    pub fn next<A>(&mut self, action: Option<A>) -> Option<A> {
+        if self.finished || self.pushes_done >= self.max_pushes {
+            self.finished = true;
+            return None;
+        }
+        match action {
+            Some(a) => {
+                self.pushes_done += 1;
+                Some(a)
+            }
+            None => {
+                self.finished = true;
+                None
+            }
+        }
+    }
+
+    /// Pushes handed out so far.
+    #[must_use]
+    pub const fn pushes_done(&self) -> u32 {
+        self.pushes_done
+    }
+
+    /// Whether the loop has stopped.
+    #[must_use]
+    pub const fn is_finished(&self) -> bool {
+        self.finished
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use std::{vec, vec::Vec};
+
+    use nalgebra::{Translation3, Vector3};
+
+    use super::*;
+    use crate::{
+        Pose,
+        synth::{
+            SynthBox,
+            fixture::{Rendered, box_at, render, spin_about},
+        },
+    };
+
+    /// Vec-backed workspace for tests.
+    pub(crate) struct OwnedWorkspace {
+        samples: Vec<FrameSample>,
+        frames: Vec<BodyFrame>,
+        twists: Vec<Twist>,
+        frame_labels: Vec<u16>,
+        frame_group: Vec<u16>,
+        groups: Vec<GroupInfo>,
+        pair_bin: Vec<u8>,
+        parent: Vec<u32>,
+        links: Vec<u32>,
+        attach: Vec<u32>,
+        splat_depth: Vec<f32>,
+        source: Vec<u32>,
+        segment: Vec<u32>,
+        queue: Vec<u32>,
+        claim: Vec<u16>,
+        segment_size: Vec<u32>,
+        segment_target: Vec<u32>,
+        segment_key: Vec<u32>,
+        seeds: Vec<[u32; 3]>,
+        motions: Vec<Pose>,
+    }
+
+    impl OwnedWorkspace {
+        pub(crate) fn new(cfg: &Config, width: usize, height: usize) -> Self {
+            let len = WorkspaceLen::for_config(cfg, width, height);
+            let (n, px, seg) = (len.frames, len.mask.pixels, len.mask.segments);
+            Self {
+                samples: vec![FrameSample::EMPTY; n],
+                frames: vec![BodyFrame::EMPTY; n],
+                twists: vec![Twist::ZERO; n],
+                frame_labels: vec![0; n],
+                frame_group: vec![0; n],
+                groups: vec![GroupInfo::default(); n],
+                pair_bin: vec![0; len.group.pair_bin],
+                parent: vec![0; n],
+                links: vec![0; n],
+                attach: vec![0; n],
+                splat_depth: vec![0.0; px],
+                source: vec![0; px],
+                segment: vec![0; px],
+                queue: vec![0; px],
+                claim: vec![0; px],
+                segment_size: vec![0; seg],
+                segment_target: vec![0; seg],
+                segment_key: vec![0; seg],
+                seeds: vec![[0; 3]; len.mask.seeds],
+                motions: vec![Pose::identity(); len.mask.motions],
+            }
+        }
+
+        pub(crate) fn view(&mut self) -> Workspace<'_> {
+            Workspace {
+                samples: &mut self.samples,
+                frames: &mut self.frames,
+                twists: &mut self.twists,
+                frame_labels: &mut self.frame_labels,
+                frame_group: &mut self.frame_group,
+                groups: &mut self.groups,
+                group: GroupScratch {
+                    pair_bin: &mut self.pair_bin,
+                    parent: &mut self.parent,
+                    links: &mut self.links,
+                    attach: &mut self.attach,
+                },
+                mask: MaskScratch {
+                    splat_depth: &mut self.splat_depth,
+                    source: &mut self.source,
+                    segment: &mut self.segment,
+                    queue: &mut self.queue,
+                    claim: &mut self.claim,
+                    segment_size: &mut self.segment_size,
+                    segment_target: &mut self.segment_target,
+                    segment_key: &mut self.segment_key,
+                    seeds: &mut self.seeds,
+                    motions: &mut self.motions,
+                },
+            }
+        }
+    }
+
+    /// Runs one step with the whole foreground as one segment at `t` and at `t+1` (the
+    /// static segmenter merged everything); returns the corrected mask.
+    fn step_merged(r: &Rendered, cfg: &Config) -> (Vec<u16>, StepReport) {
+        let (w, h) = (r.width, r.height);
+        let merged_t: Vec<u16> = r.labels_t.iter().map(|&l| u16::from(l != 0)).collect();
+        let merged_t1: Vec<u16> = r.labels_t1.iter().map(|&l| u16::from(l != 0)).collect();
+        let input = MotionInput::new(
+            ImageView::packed(w, h, &merged_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t1).unwrap(),
+            ImageView::packed(w, h, &r.flow).unwrap(),
+            r.intrinsics,
+        )
+        .unwrap();
+        let mut ws = OwnedWorkspace::new(cfg, w, h);
+        let mut out = vec![0u16; w * h];
+        let static_t1 = ImageView::packed(w, h, &merged_t1).unwrap();
+        let report = update_mask(&input, &static_t1, cfg, &mut ws.view(), &mut out).unwrap();
+        (out, report)
+    }
+
+    /// For each true object, the best IoU any predicted label reaches.
+    fn best_ious(truth: &[u16], predicted: &[u16]) -> Vec<(u16, f64)> {
+        let mut ids: Vec<u16> = truth.iter().copied().filter(|&l| l != 0).collect();
+        ids.sort_unstable();
+        ids.dedup();
+        let mut pred_ids: Vec<u16> = predicted.iter().copied().filter(|&l| l != 0).collect();
+        pred_ids.sort_unstable();
+        pred_ids.dedup();
+        ids.iter()
+            .map(|&t| {
+                let best = pred_ids
+                    .iter()
+                    .map(|&p| {
+                        let both = truth
+                            .iter()
+                            .zip(predicted)
+                            .filter(|(a, b)| **a == t && **b == p);
+                        let either = truth
+                            .iter()
+                            .zip(predicted)
+                            .filter(|(a, b)| **a == t || **b == p);
+                        both.count() as f64 / either.count().max(1) as f64
+                    })
+                    .fold(0.0, f64::max);
+                (t, best)
+            })
+            .collect()
+    }
+
+    fn distinct_labels(labels: &[u16]) -> usize {
+        let mut ids: Vec<u16> = labels.iter().copied().filter(|&l| l != 0).collect();
+        ids.sort_unstable();
+        ids.dedup();
+        ids.len()
+    }
+
+    /// Boxes in a row along x, touching, each a little nearer the camera than the one
+    /// before so that rotated corners occlude rather than intersect.
+    fn row(motions: &[Pose]) -> Vec<SynthBox> {
+        motions
+            .iter()
+            .enumerate()
+            .map(|(i, m)| {
+                let x = (i as f32 - (motions.len() as f32 - 1.0) / 2.0) * 0.06;
+                let mut b = box_at(x, 0.0, 0.6 - 0.005 * i as f32, [0.03, 0.035], i as u16 + 1);
+                b.motion = *m;
+                b
+            })
+            .collect()
+    }
+
+    fn slide_y(m: f32) -> Pose {
+        Translation3::new(0.0, m, 0.0).into()
+    }
+
+    #[test]
+    fn two_touching_boxes_one_rotating_are_split() {
+        let boxes = row(&[slide_y(0.01), Pose::identity()]);
+        let centre = boxes[1].camera_from_box.translation.vector;
+        let boxes = row(&[slide_y(0.01), spin_about(centre, 10f32.to_radians())]);
+        let r = render(&boxes, 320, 240);
+        let (out, report) = step_merged(&r, &Config::PAPER);
+        assert_eq!(report.mask.split_segments, 1, "{report:?}");
+        for (id, iou) in best_ious(&r.labels_t1, &out) {
+            assert!(iou >= 0.95, "object {id}: IoU {iou:.3} ({report:?})");
+        }
+    }
+
+    #[test]
+    fn three_touching_boxes_static_sliding_rotating_are_split() {
+        let probe = row(&[Pose::identity(); 3]);
+        let centre = probe[2].camera_from_box.translation.vector;
+        let boxes = row(&[
+            Pose::identity(),
+            slide_y(-0.012),
+            spin_about(centre, -8f32.to_radians()),
+        ]);
+        let r = render(&boxes, 320, 240);
+        let (out, report) = step_merged(&r, &Config::PAPER);
+        assert_eq!(distinct_labels(&out), 3, "{report:?}");
+        for (id, iou) in best_ious(&r.labels_t1, &out) {
+            assert!(iou >= 0.95, "object {id}: IoU {iou:.3} ({report:?})");
+        }
+    }
+
+    #[test]
+    fn nothing_moved_changes_nothing() {
+        let r = render(&row(&[Pose::identity(); 3]), 320, 240);
+        let (out, report) = step_merged(&r, &Config::PAPER);
+        let merged: Vec<u16> = r.labels_t1.iter().map(|&l| u16::from(l != 0)).collect();
+        assert_eq!(out, merged, "{report:?}");
+    }
+
+    #[test]
+    fn parts_moving_with_one_motion_are_not_split() {
+        let m = spin_about(Vector3::new(0.0, 0.0, 0.6), 6f32.to_radians()) * slide_y(0.008);
+        let r = render(&row(&[m, m]), 320, 240);
+        let (out, report) = step_merged(&r, &Config::PAPER);
+        assert_eq!(distinct_labels(&out), 1, "{report:?}");
+    }
+
+    #[test]
+    fn a_rotating_box_alone_stays_whole() {
+        // 10 degrees about its centre: flow differs by about 6 px across the box, which a
+        // raw flow-difference threshold would cut; its twist is one.
+        let probe = row(&[Pose::identity()]);
+        let centre = probe[0].camera_from_box.translation.vector;
+        let r = render(&row(&[spin_about(centre, 10f32.to_radians())]), 320, 240);
+        let (out, report) = step_merged(&r, &Config::PAPER);
+        assert_eq!(distinct_labels(&out), 1, "{report:?}");
+        assert!(report.grouping.count >= 1);
+    }
+
+    #[test]
+    fn same_inputs_and_seed_give_the_same_mask_digest() {
+        let probe = row(&[Pose::identity(); 2]);
+        let centre = probe[1].camera_from_box.translation.vector;
+        let r = render(&row(&[slide_y(0.01), spin_about(centre, 0.1)]), 320, 240);
+        let digest = |labels: &[u16]| {
+            labels.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &l| {
+                (h ^ u64::from(l)).wrapping_mul(0x0100_0000_01b3)
+            })
+        };
+        let (a, _) = step_merged(&r, &Config::PAPER);
+        let (b, _) = step_merged(&r, &Config::PAPER);
+        assert_eq!(digest(&a), digest(&b));
+        assert_ne!(
+            digest(&a),
+            digest(
+                &r.labels_t1
+                    .iter()
+                    .map(|&l| u16::from(l != 0))
+                    .collect::<Vec<_>>()
+            )
+        );
+    }
+
+    #[test]
+    fn loop_stops_without_action_or_after_the_budget() {
+        let mut cfg = Config::PAPER;
+        cfg.max_pushes = 2;
+        let mut l = RisegLoop::new(&cfg);
+        assert_eq!(l.next(Some(1)), Some(1));
+        assert_eq!(l.next(Some(2)), Some(2));
+        assert_eq!(l.next(Some(3)), None);
+        assert!(l.is_finished());
+        let mut l = RisegLoop::new(&cfg);
+        assert_eq!(l.next::<u8>(None), None);
+        assert_eq!(l.next(Some(1)), None);
+        assert_eq!(l.pushes_done(), 0);
+    }
+
+    #[test]
+    fn short_workspace_is_an_error_before_anything_is_written() {
+        let r = render(&row(&[Pose::identity()]), 64, 48);
+        let cfg = Config::PAPER;
+        let mut ws = OwnedWorkspace::new(&cfg, 64, 48);
+        ws.queue.truncate(10);
+        let input = MotionInput::new(
+            ImageView::packed(64, 48, &r.labels_t).unwrap(),
+            ImageView::packed(64, 48, &r.depth_t).unwrap(),
+            ImageView::packed(64, 48, &r.depth_t1).unwrap(),
+            ImageView::packed(64, 48, &r.flow).unwrap(),
+            r.intrinsics,
+        )
+        .unwrap();
+        let mut out = vec![7u16; 64 * 48];
+        let static_t1 = ImageView::packed(64, 48, &r.labels_t1).unwrap();
+        let err = update_mask(&input, &static_t1, &cfg, &mut ws.view(), &mut out);
+        assert!(matches!(
+            err,
+            Err(Error::BufferTooSmall {
+                buffer: Buffer::Queue,
+                ..
+            })
+        ));
+        assert!(out.iter().all(|&l| l == 7));
+    }
+}

@@ -242,23 +242,31 @@ pub fn compute_twists(
     Ok(())
 }
 
-fn eligible(input: &MotionInput<'_>, x: usize, y: usize) -> Option<(u16, Real)> {
-    let label = *input.labels_t.get(x, y)?;
-    let z = valid_depth(*input.depth_t.get(x, y)?)?;
-    (label != 0).then_some((label, z))
+/// Calls `f(x, y, label, depth_m)` for every labelled pixel with a depth reading at `t`,
+/// in row-major order; stops early when `f` returns `false`.
+fn for_each_eligible(input: &MotionInput<'_>, mut f: impl FnMut(usize, usize, u16, Real) -> bool) {
+    for y in 0..input.size().1 {
+        let (Some(labels), Some(depths)) = (input.labels_t.row(y), input.depth_t.row(y)) else {
+            return;
+        };
+        for (x, (&label, &z)) in labels.iter().zip(depths).enumerate() {
+            if label != 0
+                && let Some(z) = valid_depth(z)
+                && !f(x, y, label, z)
+            {
+                return;
+            }
+        }
+    }
 }
 
 /// Stratified seeded sampling; returns how many samples were written (sorted row-major).
 fn sample_pixels(input: &MotionInput<'_>, cfg: &Config, out: &mut [FrameSample]) -> usize {
-    let (width, height) = input.size();
     let mut total: u64 = 0;
-    for y in 0..height {
-        for x in 0..width {
-            if eligible(input, x, y).is_some() {
-                total += 1;
-            }
-        }
-    }
+    for_each_eligible(input, |_, _, _, _| {
+        total += 1;
+        true
+    });
     let want = (out.len() as u64).min(total);
     if want == 0 {
         return 0;
@@ -274,31 +282,24 @@ fn sample_pixels(input: &MotionInput<'_>, cfg: &Config, out: &mut [FrameSample])
     let mut next = target(0, &mut rng);
     let mut rank: u64 = 0;
     let k = &input.intrinsics;
-    for y in 0..height {
-        for x in 0..width {
-            let Some((label, z)) = eligible(input, x, y) else {
-                continue;
-            };
-            if rank == next {
-                if let Some(slot) = out.get_mut(taken as usize) {
-                    *slot = track(
-                        input,
-                        cfg,
-                        x,
-                        y,
-                        label,
-                        k.back_project(x as Real, y as Real, z),
-                    );
-                }
-                taken += 1;
-                if taken == want {
-                    return taken as usize;
-                }
-                next = target(taken, &mut rng);
+    for_each_eligible(input, |x, y, label, z| {
+        if rank == next {
+            if let Some(slot) = out.get_mut(taken as usize) {
+                *slot = track(
+                    input,
+                    cfg,
+                    x,
+                    y,
+                    label,
+                    k.back_project(x as Real, y as Real, z),
+                );
             }
-            rank += 1;
+            taken += 1;
+            next = target(taken, &mut rng);
         }
-    }
+        rank += 1;
+        taken < want
+    });
     taken as usize
 }
 

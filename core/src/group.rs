@@ -28,7 +28,7 @@
 use crate::{
     Config, Error, Twist,
     error::{Buffer, check_len},
-    math::{Real, exp, floor},
+    math::{Real, exp},
 };
 
 /// Group id of a frame that belongs to no group.
@@ -143,20 +143,26 @@ pub fn group_frames(
     let floor2 = cfg.static_below_m * cfg.static_below_m;
     let moving = |t: &Twist| t.norm_squared(scale) >= floor2;
 
-    // Pass 1: bins and histograms (index 0: inside one segment, 1: across).
+    // Pass 1: bins and histograms (index 0: inside one segment, 1: across). `links`
+    // holds the moving flags until pass 2.
+    for (flag, t) in links.iter_mut().zip(twists) {
+        *flag = u32::from(moving(t));
+    }
     let bin_width = cfg.kde_range_m / KDE_BINS as Real;
+    let bins_per_m = 1.0 / bin_width;
     let mut hist = [[0u32; KDE_BINS]; 2];
     let mut pair = 0;
-    for (i, (ti, li)) in twists.iter().zip(labels).enumerate() {
-        let mi = moving(ti);
-        for (tj, lj) in twists.iter().zip(labels).skip(i + 1) {
+    for (i, ((ti, li), &mi)) in twists.iter().zip(labels).zip(links.iter()).enumerate() {
+        let rest = twists.iter().zip(labels).zip(links.iter()).skip(i + 1);
+        for ((tj, lj), &mj) in rest {
             let across = li != lj;
             // Across segments only pairs of moving frames are data.
-            let code = if across && !(mi && moving(tj)) {
+            let code = if across && (mi & mj) == 0 {
                 NO_PAIR
             } else {
-                let b = floor(ti.distance(tj, scale) / bin_width);
-                let b = if b.is_finite() && b < KDE_BINS as Real {
+                // NaN fails the comparison and lands in the last bin.
+                let b = ti.distance(tj, scale) * bins_per_m;
+                let b = if b < KDE_BINS as Real {
                     b as usize
                 } else {
                     KDE_BINS - 1

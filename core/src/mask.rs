@@ -31,13 +31,17 @@ use crate::{
     frames::{BodyFrame, MotionInput},
     group::{GroupInfo, NO_GROUP},
     image::valid_depth,
-    math::{Real, round, sqrt},
+    math::{Real, round},
 };
 
 /// Most segments one step can hold (labels are `u16`, `0` is background).
 pub const MAX_SEGMENTS: usize = u16::MAX as usize;
 
 const NONE: u32 = u32::MAX;
+/// Growth decision: not computed yet.
+const UNSEEN: u32 = u32::MAX;
+/// Growth decision: the pixel has no observation.
+const HOLE: u32 = u32::MAX - 1;
 
 /// The frame groups CorrectMask seeds from (outputs of CreateFrames and GroupBFIFs).
 #[derive(Debug, Clone, Copy)]
@@ -55,8 +59,9 @@ pub struct FrameGroups<'a> {
 /// Scratch for [`correct_mask`]. Contents are garbage after the call.
 #[derive(Debug)]
 pub struct MaskScratch<'a> {
-    /// Depth of the label splatted to each pixel; `width·height`.
-    pub splat_depth: &'a mut [f32],
+    /// Per-pixel keys: splat depth bits, then segment keys, then growth decisions;
+    /// `width·height`.
+    pub key: &'a mut [u32],
     /// Source pixel at `t` of each pixel at `t+1`; `width·height`.
     pub source: &'a mut [u32],
     /// Segment id of each pixel; `width·height`.
@@ -147,7 +152,7 @@ pub fn correct_mask(
     let n = need.pixels;
     check_len(Buffer::Labels, n, labels_t1.len())?;
     for len in [
-        scratch.splat_depth.len(),
+        scratch.key.len(),
         scratch.source.len(),
         scratch.segment.len(),
         scratch.claim.len(),
@@ -176,27 +181,27 @@ pub fn correct_mask(
         key: &mut *scratch.segment_key,
     };
 
+    let key = &mut scratch.key[..n];
+
     // 1. Carry: labels_t1 temporarily holds the carried labels.
-    splat(input, &mut scratch.splat_depth[..n], source, labels_t1);
+    splat(input, key, source, labels_t1);
 
     // 2. Intersect.
-    let static_key = |i: usize| {
-        let s = static_t1.get(i % width, i / width).copied().unwrap_or(0);
-        let c = labels_t1.get(i).copied().unwrap_or(0);
-        if s == 0 {
-            0
-        } else {
-            (u32::from(c) << 16) | u32::from(s)
+    for (y, (keys, carried)) in key
+        .chunks_mut(width)
+        .zip(labels_t1.chunks(width))
+        .enumerate()
+    {
+        let statics = static_t1.row(y).unwrap_or(&[]);
+        for ((k, &c), &s) in keys.iter_mut().zip(carried).zip(statics) {
+            *k = if s == 0 {
+                0
+            } else {
+                (u32::from(c) << 16) | u32::from(s)
+            };
         }
-    };
-    let count = label_segments(
-        grid,
-        static_key,
-        cfg.min_segment_px,
-        segment,
-        queue,
-        &mut segs,
-    )?;
+    }
+    let count = label_segments(grid, key, cfg.min_segment_px, segment, queue, &mut segs)?;
 
     // 3. Seed: (segment, group, count) runs.
     let seed_count = collect_seeds(grid, groups, segment, &mut *scratch.seeds);
@@ -229,15 +234,44 @@ pub fn correct_mask(
             }
         }
     }
-    let residual = |i: usize, g: usize| -> Option<Real> {
-        let s = source.get(i).copied().filter(|&s| s != NONE)? as usize;
-        let (u, v) = ((s % width) as Real, (s / width) as Real);
-        let z = valid_depth(input.depth_t.get(s % width, s / width).copied()?)?;
-        let [dx, dy] = input.flow.get(s % width, s / width).copied()?;
-        let moved = motions.get(g)? * input.intrinsics.back_project(u, v, z);
-        let predicted = input.intrinsics.project(&moved)?;
-        let (ex, ey) = (predicted.x - (u + dx), predicted.y - (v + dy));
-        Some(sqrt(ex * ex + ey * ey))
+    // The best explaining group of a pixel is computed once, when a region first reaches
+    // it: key holds UNSEEN, HOLE (no observation: any region may pass), or group + 1
+    // (0: no group within tolerance).
+    key.fill(UNSEEN);
+    let k = input.intrinsics;
+    let (inv_fx, inv_fy) = (1.0 / k.fx, 1.0 / k.fy);
+    let explain = |j: usize, candidates: &[[u32; 3]]| -> u32 {
+        let Some(s) = source.get(j).copied().filter(|&s| s != NONE) else {
+            return HOLE;
+        };
+        let (sx, sy) = (s as usize % width, s as usize / width);
+        let (Some(z), Some([dx, dy])) = (
+            input.depth_t.get(sx, sy).copied().and_then(valid_depth),
+            input.flow.get(sx, sy).copied(),
+        ) else {
+            return HOLE;
+        };
+        let (u, v) = (sx as Real, sy as Real);
+        let p = Point3::new((u - k.cx) * z * inv_fx, (v - k.cy) * z * inv_fy, z);
+        let (ox, oy) = (u + dx, v + dy);
+        let mut best = (cfg.grow_tol_px * cfg.grow_tol_px, 0);
+        for &[_, g, _] in candidates {
+            let Some(m) = motions.get(g as usize) else {
+                continue;
+            };
+            let q = m * p;
+            if q.z <= 1e-6 {
+                continue;
+            }
+            let inv_z = 1.0 / q.z;
+            let ex = k.fx * q.x * inv_z + k.cx - ox;
+            let ey = k.fy * q.y * inv_z + k.cy - oy;
+            let r2 = ex * ex + ey * ey;
+            if r2 <= best.0 {
+                best = (r2, g + 1);
+            }
+        }
+        best.1
     };
     while head < tail {
         let Some(&i) = queue.get(head) else { break };
@@ -246,24 +280,26 @@ pub fn correct_mask(
         let (Some(&seg), Some(&mine)) = (segment.get(i), claim.get(i)) else {
             continue;
         };
-        let mine = usize::from(mine).saturating_sub(1);
         let candidates = groups_in(seeds, seg);
         for j in grid.neighbours(i) {
             if segment.get(j) != Some(&seg) || claim.get(j) != Some(&0) {
                 continue;
             }
-            // Holes of the splat have no observation; the region flows through them.
-            let accept = match residual(j, mine) {
-                None => source.get(j) == Some(&NONE),
-                Some(r) => {
-                    r <= cfg.grow_tol_px
-                        && candidates.iter().all(|&[_, g, _]| {
-                            g as usize == mine || residual(j, g as usize).is_none_or(|o| r <= o)
-                        })
+            let decision = match key.get(j).copied() {
+                Some(UNSEEN) => {
+                    let d = explain(j, candidates);
+                    if let Some(slot) = key.get_mut(j) {
+                        *slot = d;
+                    }
+                    d
                 }
+                Some(d) => d,
+                None => continue,
             };
-            if accept && let (Some(c), Some(q)) = (claim.get_mut(j), queue.get_mut(tail)) {
-                *c = mine as u16 + 1;
+            if (decision == HOLE || decision == u32::from(mine))
+                && let (Some(c), Some(q)) = (claim.get_mut(j), queue.get_mut(tail))
+            {
+                *c = mine;
                 *q = j as u32;
                 tail += 1;
             }
@@ -307,15 +343,10 @@ pub fn correct_mask(
             }
         }
     }
-    let grown_key = |i: usize| u32::from(labels_t1.get(i).copied().unwrap_or(0));
-    label_segments(
-        grid,
-        grown_key,
-        cfg.min_segment_px,
-        segment,
-        queue,
-        &mut segs,
-    )?;
+    for (k, &l) in key.iter_mut().zip(labels_t1.iter()) {
+        *k = u32::from(l);
+    }
+    label_segments(grid, key, cfg.min_segment_px, segment, queue, &mut segs)?;
     let mut max_label = 0;
     for (out, &seg) in labels_t1.iter_mut().zip(segment.iter()) {
         *out = segs.key.get(seg as usize).copied().unwrap_or(0) as u16;
@@ -341,17 +372,18 @@ impl Grid {
         inside.then(|| v as usize * self.width + u as usize)
     }
 
+    /// The 4-neighbours of pixel `i` inside the image.
     fn neighbours(&self, i: usize) -> impl Iterator<Item = usize> {
-        let (x, y) = (i % self.width, i / self.width);
         let w = self.width;
-        [
-            (x > 0).then(|| i - 1),
-            (x + 1 < w).then(|| i + 1),
-            (y > 0).then(|| i - w),
-            (y + 1 < self.height).then(|| i + w),
-        ]
-        .into_iter()
-        .flatten()
+        let x = i % w;
+        let n = w * self.height;
+        let left = if x > 0 { i.wrapping_sub(1) } else { usize::MAX };
+        let right = if x + 1 < w { i + 1 } else { usize::MAX };
+        let up = i.checked_sub(w).unwrap_or(usize::MAX);
+        let down = if i + w < n { i + w } else { usize::MAX };
+        [left, right, up, down]
+            .into_iter()
+            .filter(|&j| j != usize::MAX)
     }
 }
 
@@ -362,33 +394,38 @@ struct Segments<'a> {
     key: &'a mut [u32],
 }
 
-fn splat(input: &MotionInput<'_>, depth: &mut [f32], source: &mut [u32], carried: &mut [u16]) {
+/// Forward splat. `depth_bits` holds the winning depth's `f32` bits: for positive floats
+/// the bit patterns order like the values, so `u32` comparison is depth comparison.
+fn splat(input: &MotionInput<'_>, depth_bits: &mut [u32], source: &mut [u32], carried: &mut [u16]) {
     let (width, height) = input.size();
-    depth.fill(f32::INFINITY);
+    depth_bits.fill(u32::MAX);
     source.fill(NONE);
     carried.fill(0);
-    for (x, y, &label) in input.labels_t.pixels() {
-        if label == 0 {
-            continue;
-        }
-        let (Some(z), Some([dx, dy])) = (
-            input.depth_t.get(x, y).copied().and_then(valid_depth),
-            input.flow.get(x, y).copied(),
+    for y in 0..height {
+        let (Some(labels), Some(depths), Some(flows)) = (
+            input.labels_t.row(y),
+            input.depth_t.row(y),
+            input.flow.row(y),
         ) else {
             continue;
         };
-        let (u, v) = (round(x as Real + dx), round(y as Real + dy));
-        if !(u >= 0.0 && v >= 0.0 && u < width as Real && v < height as Real) {
-            continue;
-        }
-        let i = v as usize * width + u as usize;
-        if let (Some(d), Some(s), Some(c)) =
-            (depth.get_mut(i), source.get_mut(i), carried.get_mut(i))
-            && z < *d
-        {
-            *d = z;
-            *s = (y * width + x) as u32;
-            *c = label;
+        for (x, ((&label, &z), &[dx, dy])) in labels.iter().zip(depths).zip(flows).enumerate() {
+            let Some(z) = valid_depth(z).filter(|_| label != 0) else {
+                continue;
+            };
+            let (u, v) = (round(x as Real + dx), round(y as Real + dy));
+            if !(u >= 0.0 && v >= 0.0 && u < width as Real && v < height as Real) {
+                continue;
+            }
+            let i = v as usize * width + u as usize;
+            if let (Some(d), Some(s), Some(c)) =
+                (depth_bits.get_mut(i), source.get_mut(i), carried.get_mut(i))
+                && z.to_bits() < *d
+            {
+                *d = z.to_bits();
+                *s = (y * width + x) as u32;
+                *c = label;
+            }
         }
     }
 }
@@ -398,7 +435,7 @@ fn splat(input: &MotionInput<'_>, depth: &mut [f32], source: &mut [u32], carried
 /// to `segment` and each segment's key to `segs.key`.
 fn label_segments(
     grid: Grid,
-    key: impl Fn(usize) -> u32,
+    key: &[u32],
     min_px: u32,
     segment: &mut [u32],
     queue: &mut [u32],
@@ -406,8 +443,7 @@ fn label_segments(
 ) -> Result<usize, Error> {
     segment.fill(0);
     let mut count = 0usize;
-    for start in 0..segment.len() {
-        let k = key(start);
+    for (start, &k) in key.iter().enumerate() {
         if k == 0 || segment.get(start) != Some(&0) {
             continue;
         }
@@ -427,7 +463,7 @@ fn label_segments(
             head += 1;
             for j in grid.neighbours(i as usize) {
                 if segment.get(j) == Some(&0)
-                    && key(j) == k
+                    && key.get(j) == Some(&k)
                     && let (Some(s), Some(q)) = (segment.get_mut(j), queue.get_mut(tail))
                 {
                     *s = id;

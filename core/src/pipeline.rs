@@ -59,12 +59,7 @@ impl Workspace<'_> {
         }
         let m = &self.mask;
         let px = len.mask.pixels;
-        for l in [
-            m.splat_depth.len(),
-            m.source.len(),
-            m.segment.len(),
-            m.claim.len(),
-        ] {
+        for l in [m.key.len(), m.source.len(), m.segment.len(), m.claim.len()] {
             check_len(Buffer::Pixels, px, l)?;
         }
         check_len(Buffer::Queue, px, m.queue.len())?;
@@ -256,7 +251,7 @@ pub(crate) mod tests {
         parent: Vec<u32>,
         links: Vec<u32>,
         attach: Vec<u32>,
-        splat_depth: Vec<f32>,
+        key: Vec<u32>,
         source: Vec<u32>,
         segment: Vec<u32>,
         queue: Vec<u32>,
@@ -283,7 +278,7 @@ pub(crate) mod tests {
                 parent: vec![0; n],
                 links: vec![0; n],
                 attach: vec![0; n],
-                splat_depth: vec![0.0; px],
+                key: vec![0; px],
                 source: vec![0; px],
                 segment: vec![0; px],
                 queue: vec![0; px],
@@ -311,7 +306,7 @@ pub(crate) mod tests {
                     attach: &mut self.attach,
                 },
                 mask: MaskScratch {
-                    splat_depth: &mut self.splat_depth,
+                    key: &mut self.key,
                     source: &mut self.source,
                     segment: &mut self.segment,
                     queue: &mut self.queue,

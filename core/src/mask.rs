@@ -18,10 +18,11 @@
 //!    with the smallest residual. Rotations are handled because `M` is a full rigid motion.
 //! 5. **Label.** Every group but the largest (most seeds) of a split segment gets a new
 //!    label; the largest keeps the segment's label, and so do pixels no group explains.
-//!    Fragments smaller than [`Config::min_segment_px`] left by the growth join their
-//!    largest neighbour.
+//!    The output segments are the 4-connected components of these labels (two objects
+//!    that both stayed still share the zero motion but not a region), and components
+//!    smaller than [`Config::min_segment_px`] join their largest neighbour.
 //!
-//! Labels of the output are `1..` in scan order of the segments; background is `0`.
+//! Output labels are `1..=count` in scan order of the final segments; background is `0`.
 
 use nalgebra::{Point3, Translation3};
 
@@ -349,7 +350,7 @@ pub fn correct_mask(
     label_segments(grid, key, cfg.min_segment_px, segment, queue, &mut segs)?;
     let mut max_label = 0;
     for (out, &seg) in labels_t1.iter_mut().zip(segment.iter()) {
-        *out = segs.key.get(seg as usize).copied().unwrap_or(0) as u16;
+        *out = seg as u16;
         max_label = max_label.max(*out);
     }
     Ok(MaskReport {

@@ -1,4 +1,8 @@
-//! `riseg`: the host side of RISeg. It owns everything `riseg-core` leaves to the caller:
+#![doc = include_str!("../../README.md")]
+//!
+//! ## This crate
+//!
+//! `riseg` is the host side of RISeg. It owns everything `riseg-core` leaves to the caller:
 //! buffers (`Vec`-backed workspaces), file I/O, devices, the simulator and the CLI.
 
 pub mod synthetic;

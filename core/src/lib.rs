@@ -2,6 +2,7 @@
 #![no_std]
 #![deny(missing_docs)]
 
+pub mod action;
 pub mod camera;
 mod error;
 pub mod image;

@@ -5,6 +5,7 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod action;
 pub mod camera;
 mod error;
 pub mod frames;

@@ -35,3 +35,8 @@ pub(crate) fn round(x: Real) -> Real {
 pub(crate) fn floor(x: Real) -> Real {
     libm::floorf(x)
 }
+
+#[inline]
+pub(crate) fn ln(x: Real) -> Real {
+    libm::logf(x)
+}

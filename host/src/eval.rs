@@ -1,0 +1,416 @@
+//! `riseg eval`: predicted label maps scored against a dataset's ground truth with the
+//! UOIS metrics of [`crate::metrics`], averaged per push index.
+//!
+//! # Folder layout
+//!
+//! ```text
+//! DATASET/scene_000/label/000000.png   ground truth, 16-bit grey, instance ids, 0 = background
+//!                         000001.png   frame t = the scene after t pushes
+//! PRED/scene_000/label/000000.png      the prediction for the same frame, same size, 16-bit
+//! ```
+//!
+//! Every `scene_*` folder of `DATASET` must have a `label/` folder holding at least one
+//! `<frame number>.png` (other files there are ignored), and `PRED` must have the same
+//! file for each (extra files in `PRED` are ignored). The frame number is the push index the image is averaged under. Any
+//! missing, unreadable, non-16-bit or mis-sized label map is an [`EvalError`] that names
+//! the file; nothing is skipped silently.
+//!
+//! # Contract
+//!
+//! [`find_frame_pairs`] lists the work and checks that every prediction exists;
+//! [`evaluate`] reads and scores each pair and averages per push into an [`EvalReport`],
+//! whose numbers are percentages; [`EvalReport`] prints as a table (`Display`) and
+//! writes JSON atomically ([`EvalReport::write_json`]).
+
+use core::fmt;
+use std::fs;
+use std::io::{self, Write as _};
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::metrics::{self, ImageMetrics, MetricsError, MetricsRow, Prf, PushAverages};
+
+/// Why an evaluation failed. Every variant names the file or folder at fault; the
+/// underlying error, if any, is the [`std::error::Error::source`] (print the chain, e.g.
+/// anyhow's `{:#}`, to see both).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum EvalError {
+    /// A file or folder could not be read or written.
+    #[error("{}", path.display())]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The operating system's error.
+        source: io::Error,
+    },
+    /// The dataset folder has no `scene_*` folder.
+    #[error("{}: no scene_* folders (expected DATASET/scene_000/label/000000.png, ...)", root.display())]
+    NoScenes {
+        /// The dataset folder.
+        root: PathBuf,
+    },
+    /// A scene has no ground-truth label maps.
+    #[error("{}: no ground-truth label maps (expected label/000000.png, ...)", scene.display())]
+    NoGroundTruth {
+        /// The scene folder.
+        scene: PathBuf,
+    },
+    /// A PNG in a `label/` folder is not named by a frame number.
+    #[error("{}: a label map must be named by its frame number, like 000000.png", path.display())]
+    BadFrameName {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The prediction for a ground-truth frame does not exist.
+    #[error("{}: missing prediction (PRED must mirror the dataset's scene_*/label/ files)", path.display())]
+    MissingPrediction {
+        /// The prediction file that should exist.
+        path: PathBuf,
+    },
+    /// A label map is not a readable PNG.
+    #[error("{}: not a readable PNG", path.display())]
+    Decode {
+        /// The file.
+        path: PathBuf,
+        /// The decoder's error.
+        source: image::ImageError,
+    },
+    /// A label map is a PNG, but not 16-bit single-channel.
+    #[error("{}: a label map must be a 16-bit greyscale PNG, this one is {found}", path.display())]
+    NotSixteenBit {
+        /// The file.
+        path: PathBuf,
+        /// The colour type found, e.g. `L8` or `Rgb8`.
+        found: String,
+    },
+    /// A prediction's size differs from its ground truth's.
+    #[error(
+        "{}: {width}x{height} labels, but the ground truth is {gt_width}x{gt_height}",
+        path.display()
+    )]
+    SizeMismatch {
+        /// The prediction file.
+        path: PathBuf,
+        /// The prediction's width in pixels.
+        width: usize,
+        /// The prediction's height in pixels.
+        height: usize,
+        /// The ground truth's width in pixels.
+        gt_width: usize,
+        /// The ground truth's height in pixels.
+        gt_height: usize,
+    },
+    /// The metrics refused the pair (too many objects).
+    #[error("{}: cannot score this prediction", path.display())]
+    Metrics {
+        /// The prediction file.
+        path: PathBuf,
+        /// Why.
+        source: MetricsError,
+    },
+}
+
+/// A decoded label map: row-major instance ids, 0 = background.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LabelImage {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// `width · height` labels, row by row.
+    pub labels: Vec<u16>,
+}
+
+/// Reads a 16-bit greyscale PNG label map.
+///
+/// # Errors
+/// [`EvalError::Io`] if the file cannot be opened, [`EvalError::Decode`] if it is not a
+/// valid PNG, [`EvalError::NotSixteenBit`] if its pixels are not 16-bit single-channel.
+pub fn read_label_png(path: &Path) -> Result<LabelImage, EvalError> {
+    let decoded = image::ImageReader::open(path)
+        .map_err(|source| EvalError::Io {
+            path: path.to_owned(),
+            source,
+        })?
+        .decode()
+        .map_err(|source| EvalError::Decode {
+            path: path.to_owned(),
+            source,
+        })?;
+    match decoded {
+        image::DynamicImage::ImageLuma16(buffer) => Ok(LabelImage {
+            width: buffer.width() as usize,
+            height: buffer.height() as usize,
+            labels: buffer.into_raw(),
+        }),
+        other => Err(EvalError::NotSixteenBit {
+            path: path.to_owned(),
+            found: format!("{:?}", other.color()),
+        }),
+    }
+}
+
+/// One ground-truth frame and the prediction to score against it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FramePair {
+    /// The scene folder's name, e.g. `scene_000`.
+    pub scene: String,
+    /// The frame number: how many pushes the scene has had.
+    pub push: u32,
+    /// `DATASET/<scene>/label/<frame>.png`.
+    pub gt: PathBuf,
+    /// `PRED/<scene>/label/<frame>.png`.
+    pub pred: PathBuf,
+}
+
+/// Lists every ground-truth frame of `gt_root` with its prediction under `pred_root`,
+/// scenes and frames in name order.
+///
+/// # Errors
+/// [`EvalError::NoScenes`], [`EvalError::NoGroundTruth`], [`EvalError::BadFrameName`],
+/// [`EvalError::MissingPrediction`] as their names say; [`EvalError::Io`] if a folder
+/// cannot be listed.
+pub fn find_frame_pairs(gt_root: &Path, pred_root: &Path) -> Result<Vec<FramePair>, EvalError> {
+    let mut scenes: Vec<(String, PathBuf)> = list_dir(gt_root)?
+        .into_iter()
+        .filter(|path| path.is_dir())
+        .filter_map(|path| {
+            let name = path.file_name()?.to_str()?.to_owned();
+            name.starts_with("scene_").then_some((name, path))
+        })
+        .collect();
+    if scenes.is_empty() {
+        return Err(EvalError::NoScenes {
+            root: gt_root.to_owned(),
+        });
+    }
+    scenes.sort();
+
+    let mut pairs = Vec::new();
+    for (scene, scene_dir) in scenes {
+        let label_dir = scene_dir.join("label");
+        if !label_dir.is_dir() {
+            return Err(EvalError::NoGroundTruth { scene: scene_dir });
+        }
+        let mut frames = Vec::new();
+        for gt in list_dir(&label_dir)? {
+            if gt.extension().and_then(|e| e.to_str()) != Some("png") {
+                continue;
+            }
+            let push = gt
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .filter(|s| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit()))
+                .and_then(|s| s.parse::<u32>().ok())
+                .ok_or_else(|| EvalError::BadFrameName { path: gt.clone() })?;
+            frames.push((push, gt));
+        }
+        if frames.is_empty() {
+            return Err(EvalError::NoGroundTruth { scene: scene_dir });
+        }
+        frames.sort();
+        for (push, gt) in frames {
+            let mut pred = pred_root.join(&scene).join("label");
+            if let Some(name) = gt.file_name() {
+                pred.push(name);
+            }
+            if !pred.is_file() {
+                return Err(EvalError::MissingPrediction { path: pred });
+            }
+            pairs.push(FramePair {
+                scene: scene.clone(),
+                push,
+                gt,
+                pred,
+            });
+        }
+    }
+    Ok(pairs)
+}
+
+/// The entries of a folder (any order).
+fn list_dir(dir: &Path) -> Result<Vec<PathBuf>, EvalError> {
+    let io_error = |source| EvalError::Io {
+        path: dir.to_owned(),
+        source,
+    };
+    fs::read_dir(dir)
+        .map_err(io_error)?
+        .map(|entry| entry.map(|e| e.path()).map_err(io_error))
+        .collect()
+}
+
+/// Reads both label maps of `pair` and computes their metrics.
+///
+/// # Errors
+/// Any error of [`read_label_png`] for either file; [`EvalError::SizeMismatch`] if the
+/// prediction's size differs from the ground truth's; [`EvalError::Metrics`] if the
+/// metrics refuse the pair.
+pub fn frame_metrics(pair: &FramePair) -> Result<ImageMetrics, EvalError> {
+    let gt = read_label_png(&pair.gt)?;
+    let pred = read_label_png(&pair.pred)?;
+    if (pred.width, pred.height) != (gt.width, gt.height) {
+        return Err(EvalError::SizeMismatch {
+            path: pair.pred.clone(),
+            width: pred.width,
+            height: pred.height,
+            gt_width: gt.width,
+            gt_height: gt.height,
+        });
+    }
+    metrics::image_metrics(&gt.labels, &pred.labels, gt.width, gt.height).map_err(|source| {
+        EvalError::Metrics {
+            path: pair.pred.clone(),
+            source,
+        }
+    })
+}
+
+/// Scores every pair and averages per push index; calls `on_image` after each image
+/// (for a progress bar).
+///
+/// # Errors
+/// The first error of [`frame_metrics`].
+pub fn evaluate(pairs: &[FramePair], mut on_image: impl FnMut()) -> Result<EvalReport, EvalError> {
+    let mut averages = PushAverages::new();
+    for pair in pairs {
+        averages.add(pair.push, &frame_metrics(pair)?);
+        on_image();
+    }
+    Ok(EvalReport::from_rows(&averages.rows()))
+}
+
+/// Precision, recall and F-measure in percent.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PrfPct {
+    /// Precision, 0–100.
+    pub p: f64,
+    /// Recall, 0–100.
+    pub r: f64,
+    /// F-measure, 0–100.
+    pub f: f64,
+}
+
+impl From<Prf> for PrfPct {
+    fn from(prf: Prf) -> Self {
+        Self {
+            p: 100.0 * prf.precision,
+            r: 100.0 * prf.recall,
+            f: 100.0 * prf.f_measure,
+        }
+    }
+}
+
+/// The mean metrics of one push index, in percent.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PushReport {
+    /// Push index (frame number).
+    pub push: u32,
+    /// Images averaged.
+    pub images: usize,
+    /// Overlap P / R / F.
+    pub overlap: PrfPct,
+    /// Boundary P / R / F.
+    pub boundary: PrfPct,
+    /// Mean share of ground-truth objects matched with overlap F > 75 %.
+    pub objects_f75_pct: f64,
+}
+
+impl From<&MetricsRow> for PushReport {
+    fn from(row: &MetricsRow) -> Self {
+        Self {
+            push: row.push,
+            images: row.images,
+            overlap: row.overlap.into(),
+            boundary: row.boundary.into(),
+            objects_f75_pct: 100.0 * row.objects_detected_share,
+        }
+    }
+}
+
+/// The result of `riseg eval`: one [`PushReport`] per push index, in push order. Its
+/// JSON form is `{"pushes": [{"push": 0, "images": 23, "overlap": {"p": .., "r": ..,
+/// "f": ..}, "boundary": {..}, "objects_f75_pct": ..}, ...]}`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EvalReport {
+    /// One entry per push index.
+    pub pushes: Vec<PushReport>,
+}
+
+impl EvalReport {
+    /// The report of averaged rows, converted to percent.
+    #[must_use]
+    pub fn from_rows(rows: &[MetricsRow]) -> Self {
+        Self {
+            pushes: rows.iter().map(PushReport::from).collect(),
+        }
+    }
+
+    /// Writes the report as pretty JSON to `path`, atomically: a temporary file in the
+    /// same folder is written, flushed and renamed over `path`, so a reader never sees a
+    /// half-written report.
+    ///
+    /// # Errors
+    /// [`EvalError::Io`] naming `path` if it cannot be written.
+    pub fn write_json(&self, path: &Path) -> Result<(), EvalError> {
+        let io_error = |source| EvalError::Io {
+            path: path.to_owned(),
+            source,
+        };
+        let mut json = serde_json::to_vec_pretty(self).map_err(|e| io_error(e.into()))?;
+        json.push(b'\n');
+        write_atomically(path, &json).map_err(io_error)
+    }
+}
+
+/// Writes `bytes` to a temporary sibling of `path`, syncs it, and renames it to `path`.
+fn write_atomically(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let name = path.file_name().ok_or_else(|| {
+        io::Error::new(io::ErrorKind::InvalidInput, "the path does not name a file")
+    })?;
+    let temp = path.with_file_name(format!(
+        ".{}.tmp-{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let written = fs::File::create(&temp).and_then(|mut file| {
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        fs::rename(&temp, path)
+    });
+    if written.is_err() {
+        // Best effort: the temporary may not exist; the write error is what matters.
+        let _ = fs::remove_file(&temp);
+    }
+    written
+}
+
+impl fmt::Display for EvalReport {
+    /// The table `riseg eval` prints: one line per push index, numbers in percent.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "{:13}|{:^23}|{:^23}|", "", "overlap (%)", "boundary (%)")?;
+        writeln!(
+            f,
+            "{:>4} {:>7} |{:>7}{:>7}{:>7}  |{:>7}{:>7}{:>7}  | objects F>75 (%)",
+            "push", "images", "P", "R", "F", "P", "R", "F"
+        )?;
+        for row in &self.pushes {
+            writeln!(
+                f,
+                "{:>4} {:>7} |{:>7.1}{:>7.1}{:>7.1}  |{:>7.1}{:>7.1}{:>7.1}  |{:>10.1}",
+                row.push,
+                row.images,
+                row.overlap.p,
+                row.overlap.r,
+                row.overlap.f,
+                row.boundary.p,
+                row.boundary.r,
+                row.boundary.f,
+                row.objects_f75_pct
+            )?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,259 @@
+//! `riseg eval` on tiny PNG datasets written into a temporary folder: the binary end to
+//! end (table, JSON, errors naming the file) and the library's per-push averaging.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use riseg::eval::{self, EvalError, EvalReport};
+
+const W: u32 = 24;
+const H: u32 = 16;
+
+/// Frame `push` of a scene: two touching rectangles that drift apart by `push` px.
+fn frame_labels(push: u32) -> Vec<u16> {
+    let mut labels = vec![0u16; (W * H) as usize];
+    for y in 3..12 {
+        for x in 2..10 {
+            labels[(y * W + x) as usize] = 1;
+        }
+        for x in 10 + push..18 + push {
+            labels[(y * W + x) as usize] = 2;
+        }
+    }
+    labels
+}
+
+fn write_png16(path: &Path, width: u32, height: u32, labels: Vec<u16>) {
+    let folder = path.parent().expect("a label path has a folder");
+    std::fs::create_dir_all(folder).expect("creating the label folder");
+    image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(width, height, labels)
+        .expect("width · height labels")
+        .save(path)
+        .expect("writing a 16-bit PNG");
+}
+
+fn label_path(root: &Path, scene: &str, push: u32) -> PathBuf {
+    root.join(scene)
+        .join("label")
+        .join(format!("{push:06}.png"))
+}
+
+/// `root/scene_000` and `root/scene_001`, frames 0-2 each.
+fn write_dataset(root: &Path) {
+    for scene in ["scene_000", "scene_001"] {
+        for push in 0..3 {
+            write_png16(&label_path(root, scene, push), W, H, frame_labels(push));
+        }
+    }
+}
+
+fn riseg(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_riseg"))
+        .args(args)
+        .output()
+        .expect("running the riseg binary")
+}
+
+fn eval_cli(gt: &Path, pred: &Path, json: Option<&Path>) -> Output {
+    let mut args = vec![
+        "eval".to_owned(),
+        "--gt".to_owned(),
+        gt.display().to_string(),
+        "--pred".to_owned(),
+        pred.display().to_string(),
+    ];
+    if let Some(json) = json {
+        args.extend(["--json".to_owned(), json.display().to_string()]);
+    }
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    riseg(&args)
+}
+
+#[test]
+fn a_dataset_against_itself_scores_100_everywhere() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    write_dataset(&data);
+    let json = dir.path().join("out").join("metrics.json");
+    std::fs::create_dir_all(json.parent().unwrap()).unwrap();
+
+    let out = eval_cli(&data, &data, Some(&json));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let rows: Vec<&str> = stdout.lines().skip(2).collect();
+    assert_eq!(rows.len(), 3, "{stdout}");
+    for (push, row) in rows.iter().enumerate() {
+        let fields: Vec<&str> = row.split(['|', ' ']).filter(|s| !s.is_empty()).collect();
+        assert_eq!(fields[..2], [push.to_string(), "2".to_owned()], "{row}");
+        assert!(fields[2..].iter().all(|f| *f == "100.0"), "{row}");
+    }
+
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let pushes = report["pushes"].as_array().unwrap();
+    assert_eq!(pushes.len(), 3);
+    for (n, push) in pushes.iter().enumerate() {
+        assert_eq!(push["push"], n);
+        assert_eq!(push["images"], 2);
+        for key in ["overlap", "boundary"] {
+            for prf in ["p", "r", "f"] {
+                assert_eq!(push[key][prf], 100.0, "{key}.{prf} of push {n}");
+            }
+        }
+        assert_eq!(push["objects_f75_pct"], 100.0);
+    }
+    // Written by rename: no temporary file is left beside the report.
+    let names: Vec<_> = std::fs::read_dir(json.parent().unwrap())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, ["metrics.json"]);
+}
+
+#[test]
+fn scores_are_averaged_per_push() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, pred) = (dir.path().join("data"), dir.path().join("pred"));
+    write_dataset(&data);
+    write_dataset(&pred);
+    // In scene_001, frame 1 predicts nothing: P = 1, R = 0, F = 0, 0 objects detected.
+    write_png16(
+        &label_path(&pred, "scene_001", 1),
+        W,
+        H,
+        vec![0; (W * H) as usize],
+    );
+
+    let pairs = eval::find_frame_pairs(&data, &pred).unwrap();
+    assert_eq!(pairs.len(), 6);
+    let mut images = 0;
+    let report = eval::evaluate(&pairs, || images += 1).unwrap();
+    assert_eq!(images, 6);
+    let push1 = report.pushes[1];
+    assert_eq!((push1.push, push1.images), (1, 2));
+    // Mean of a perfect image (100) and the empty prediction.
+    assert_eq!(
+        (push1.overlap.p, push1.overlap.r, push1.overlap.f),
+        (100.0, 50.0, 50.0)
+    );
+    assert_eq!(push1.objects_f75_pct, 50.0);
+    assert_eq!(report.pushes[0].overlap.f, 100.0);
+    assert_eq!(report.pushes[2].boundary.f, 100.0);
+
+    let table = report.to_string();
+    assert!(table.contains("objects F>75"), "{table}");
+    let reread: EvalReport =
+        serde_json::from_str(&serde_json::to_string(&report).unwrap()).unwrap();
+    assert_eq!(reread, report);
+}
+
+/// Runs the CLI on `data` against `pred` and returns its stderr, asserting failure.
+fn failing_eval(data: &Path, pred: &Path) -> String {
+    let out = eval_cli(data, pred, None);
+    assert!(!out.status.success());
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn a_mis_sized_prediction_is_an_error_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, pred) = (dir.path().join("data"), dir.path().join("pred"));
+    write_dataset(&data);
+    write_dataset(&pred);
+    let bad = label_path(&pred, "scene_001", 2);
+    write_png16(&bad, W + 1, H, vec![0; ((W + 1) * H) as usize]);
+
+    let stderr = failing_eval(&data, &pred);
+    assert!(stderr.contains(&bad.display().to_string()), "{stderr}");
+    assert!(
+        stderr.contains("25x16 labels, but the ground truth is 24x16"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn a_missing_prediction_is_an_error_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, pred) = (dir.path().join("data"), dir.path().join("pred"));
+    write_dataset(&data);
+    write_dataset(&pred);
+    let gone = label_path(&pred, "scene_000", 1);
+    std::fs::remove_file(&gone).unwrap();
+
+    let stderr = failing_eval(&data, &pred);
+    assert!(stderr.contains(&gone.display().to_string()), "{stderr}");
+    assert!(stderr.contains("missing prediction"), "{stderr}");
+}
+
+#[test]
+fn an_8_bit_or_corrupt_prediction_is_an_error_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, pred) = (dir.path().join("data"), dir.path().join("pred"));
+    write_dataset(&data);
+    write_dataset(&pred);
+    let eight_bit = label_path(&pred, "scene_000", 0);
+    image::GrayImage::new(W, H).save(&eight_bit).unwrap();
+    let stderr = failing_eval(&data, &pred);
+    assert!(
+        stderr.contains(&eight_bit.display().to_string()),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("must be a 16-bit greyscale PNG, this one is L8"),
+        "{stderr}"
+    );
+
+    write_dataset(&pred);
+    let corrupt = label_path(&pred, "scene_001", 0);
+    std::fs::write(&corrupt, b"\x89PNG\r\n\x1a\nnot really").unwrap();
+    let err = eval::evaluate(&eval::find_frame_pairs(&data, &pred).unwrap(), || {}).unwrap_err();
+    assert!(
+        matches!(&err, EvalError::Decode { path, .. } if *path == corrupt),
+        "{err}"
+    );
+    let stderr = failing_eval(&data, &pred);
+    assert!(stderr.contains(&corrupt.display().to_string()), "{stderr}");
+    assert!(stderr.contains("not a readable PNG"), "{stderr}");
+}
+
+#[test]
+fn a_dataset_without_scenes_or_labels_is_an_error_naming_the_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let err = eval::find_frame_pairs(dir.path(), dir.path()).unwrap_err();
+    assert!(matches!(err, EvalError::NoScenes { .. }), "{err}");
+
+    let scene = dir.path().join("scene_000");
+    std::fs::create_dir_all(scene.join("rgb")).unwrap();
+    let err = eval::find_frame_pairs(dir.path(), dir.path()).unwrap_err();
+    assert!(
+        matches!(&err, EvalError::NoGroundTruth { scene: s } if *s == scene),
+        "{err}"
+    );
+
+    let odd = scene.join("label").join("first.png");
+    write_png16(&odd, 2, 2, vec![0; 4]);
+    let err = eval::find_frame_pairs(dir.path(), dir.path()).unwrap_err();
+    assert!(
+        matches!(&err, EvalError::BadFrameName { path } if *path == odd),
+        "{err}"
+    );
+}
+
+#[test]
+fn eval_help_explains_the_columns_and_the_layout() {
+    let out = riseg(&["eval", "--help"]);
+    assert!(out.status.success());
+    let help = String::from_utf8_lossy(&out.stdout);
+    for needle in [
+        "DATASET/scene_000/label/000000.png",
+        "PRED/scene_000/label/000000.png",
+        "overlap P",
+        "boundary P/R",
+        "objects F>75",
+        "--json",
+    ] {
+        assert!(help.contains(needle), "missing {needle:?} in:\n{help}");
+    }
+}

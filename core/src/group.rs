@@ -10,9 +10,9 @@
 //!   pairs is split at its first valley into the near component (pairs on one body: `d`
 //!   is twist noise) and the far component (pairs on two bodies that moved differently).
 //!   These are the likelihoods `p(d | same body)` and `p(d | different bodies)`.
-//! - The prior comes from the mask: `P(same body | one segment)` and `P(same body | two
-//!   segments)` are the Laplace-smoothed shares of near pairs among the pairs inside one
-//!   segment and among the pairs across segments.
+//! - The prior comes from the mask: `P(same body | one segment)` is the Laplace-smoothed
+//!   share of near pairs among the pairs inside one segment. Pairs across segments shape
+//!   the KDE (they show what "different bodies" look like) but never link.
 //! - A pair links when the posterior `P(same body | d, mask)` exceeds
 //!   [`Config::link_posterior`]. With no valley (nothing moved, one moving body, or bodies
 //!   whose motions noise cannot tell apart) every pair is near.
@@ -187,7 +187,7 @@ pub fn group_frames(
         NO_PAIR => None,
         c if c & ACROSS != 0 => None,
         c => {
-            let p = posterior[usize::from(c & ACROSS != 0)][usize::from(c & !ACROSS) % KDE_BINS];
+            let p = posterior[usize::from(c) % KDE_BINS];
             (p > cfg.link_posterior).then_some(p)
         }
     };
@@ -450,12 +450,10 @@ fn finish_groups(
     Ok(count)
 }
 
-/// Posterior `P(same body | bin, class)` for class 0 (one segment) and 1 (across), and the
-/// valley bin that splits near from far (`None`: no valley).
-fn posterior_table(
-    hist: &[[u32; KDE_BINS]; 2],
-    cfg: &Config,
-) -> ([[Real; KDE_BINS]; 2], Option<usize>) {
+/// Posterior `P(same body | bin)` for pairs inside one segment (the only pairs that link),
+/// and the valley bin that splits near from far (`None`: no valley). The KDE is over all
+/// data pairs, inside and across segments.
+fn posterior_table(hist: &[[u32; KDE_BINS]; 2], cfg: &Config) -> ([Real; KDE_BINS], Option<usize>) {
     let sigma_bins = cfg.kde_bandwidth_m / (cfg.kde_range_m / KDE_BINS as Real);
     let mut all = [0.0 as Real; KDE_BINS];
     for (a, (h0, h1)) in all.iter_mut().zip(hist[0].iter().zip(&hist[1])) {
@@ -468,17 +466,16 @@ fn posterior_table(
     // one gets a small uniform floor so that a distance no pair showed is "different".
     let near = normalised(smooth(&all, sigma_bins, 0, cut), 0.0);
     let far = normalised(smooth(&all, sigma_bins, cut, KDE_BINS), 1e-3);
-    let mut table = [[0.0; KDE_BINS]; 2];
-    for (class, row) in table.iter_mut().enumerate() {
-        let h = &hist[class];
-        let total: u64 = h.iter().map(|&c| u64::from(c)).sum();
-        let near_count: u64 = h.iter().take(cut).map(|&c| u64::from(c)).sum();
-        let prior = (near_count as Real + 1.0) / (total as Real + 2.0);
-        for (p, (g, f)) in row.iter_mut().zip(near.iter().zip(&far)) {
-            let a = prior * g;
-            let b = (1.0 - prior) * f;
-            *p = if a + b > 0.0 { a / (a + b) } else { 0.0 };
-        }
+    // Prior from the mask: the share of near pairs among the pairs inside one segment.
+    let inside = &hist[0];
+    let total: u64 = inside.iter().map(|&c| u64::from(c)).sum();
+    let near_count: u64 = inside.iter().take(cut).map(|&c| u64::from(c)).sum();
+    let prior = (near_count as Real + 1.0) / (total as Real + 2.0);
+    let mut table = [0.0; KDE_BINS];
+    for (p, (g, f)) in table.iter_mut().zip(near.iter().zip(&far)) {
+        let a = prior * g;
+        let b = (1.0 - prior) * f;
+        *p = if a + b > 0.0 { a / (a + b) } else { 0.0 };
     }
     (table, split)
 }

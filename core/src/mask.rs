@@ -22,7 +22,8 @@
 //!    that both stayed still share the zero motion but not a region), and components
 //!    smaller than [`Config::min_segment_px`] join their largest neighbour.
 //!
-//! Output labels are `1..=count` in scan order of the final segments; background is `0`.
+//! Output labels are distinct positive ids, increasing in scan order of the final segments
+//! (with gaps where small fragments merged away); background is `0`.
 
 use nalgebra::{Point3, Translation3};
 

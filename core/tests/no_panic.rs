@@ -164,11 +164,11 @@ proptest! {
         };
         let heat = ImageView::packed(w, h, &s.heatmap).unwrap();
         let depth = ImageView::packed(w, h, &s.depth_t).unwrap();
-        if let Ok(report) = find_action(&heat, &depth, &k, &cfg, scratch) {
-            if let Some(push) = report.push() {
-                prop_assert!(push.direction_cam.iter().all(|c| c.is_finite()));
-                prop_assert!((push.direction_cam.norm() - 1.0).abs() < 1e-3);
-            }
+        if let Ok(report) = find_action(&heat, &depth, &k, &cfg, scratch)
+            && let Some(push) = report.push()
+        {
+            prop_assert!(push.direction_cam.iter().all(|c| c.is_finite()));
+            prop_assert!((push.direction_cam.norm() - 1.0).abs() < 1e-3);
         }
     }
 }

@@ -7,5 +7,6 @@
 
 pub mod eval;
 pub mod metrics;
+pub mod robot;
 pub mod synthetic;
 pub mod workspace;

@@ -39,6 +39,9 @@ use crate::{
 /// Most segments one step can hold (labels are `u16`, `0` is background).
 pub const MAX_SEGMENTS: usize = u16::MAX as usize;
 
+/// Largest image width or height CorrectMask accepts, pixels.
+pub const MAX_SIDE_PX: usize = 0xFFFF;
+
 const NONE: u32 = u32::MAX;
 /// Growth decision: not computed yet.
 const UNSEEN: u32 = u32::MAX;
@@ -134,7 +137,7 @@ pub struct MaskReport {
 ///
 /// # Errors
 /// [`Error::SizeMismatch`] if `static_t1` differs in size from `input` or the group slices
-/// disagree; [`Error::BufferTooSmall`] if `labels_t1` or a scratch slice is shorter than
+/// disagree; [`Error::BadImageLayout`] if a side exceeds [`MAX_SIDE_PX`]; [`Error::BufferTooSmall`] if `labels_t1` or a scratch slice is shorter than
 /// [`MaskScratchLen`] says (nothing is written then); [`Error::TooManyLabels`] if the
 /// segments do not fit `u16` labels; [`Error::BadConfig`] if `cfg` fails [`Config::check`].
 pub fn correct_mask(
@@ -149,6 +152,9 @@ pub fn correct_mask(
     let (width, height) = input.size();
     if static_t1.size() != (width, height) || groups.frame_group.len() != groups.frames.len() {
         return Err(Error::SizeMismatch);
+    }
+    if width > MAX_SIDE_PX || height > MAX_SIDE_PX {
+        return Err(Error::BadImageLayout);
     }
     let need = MaskScratchLen::new(width, height, groups.frames.len());
     let n = need.pixels;
@@ -223,7 +229,9 @@ pub fn correct_mask(
             continue;
         };
         for px in frame.px_t1 {
-            let Some(i) = grid.index(px) else { continue };
+            let Some((i, packed)) = grid.locate(px) else {
+                continue;
+            };
             let seg = segment.get(i).copied().unwrap_or(0);
             let run = groups_in(seeds, seg);
             if seg == 0 || run.len() < 2 || !run.iter().any(|s| s[1] == u32::from(g)) {
@@ -231,7 +239,7 @@ pub fn correct_mask(
             }
             if let (Some(c @ 0), Some(q)) = (claim.get_mut(i), queue.get_mut(tail)) {
                 *c = g + 1;
-                *q = i as u32;
+                *q = packed;
                 tail += 1;
             }
         }
@@ -246,7 +254,7 @@ pub fn correct_mask(
         let Some(s) = source.get(j).copied().filter(|&s| s != NONE) else {
             return HOLE;
         };
-        let (sx, sy) = (s as usize % width, s as usize / width);
+        let (sx, sy) = Grid::unpack(s);
         let (Some(z), Some([dx, dy])) = (
             input.depth_t.get(sx, sy).copied().and_then(valid_depth),
             input.flow.get(sx, sy).copied(),
@@ -276,14 +284,14 @@ pub fn correct_mask(
         best.1
     };
     while head < tail {
-        let Some(&i) = queue.get(head) else { break };
+        let Some(&p) = queue.get(head) else { break };
         head += 1;
-        let i = i as usize;
+        let i = grid.index(p);
         let (Some(&seg), Some(&mine)) = (segment.get(i), claim.get(i)) else {
             continue;
         };
         let candidates = groups_in(seeds, seg);
-        for j in grid.neighbours(i) {
+        for (j, pj) in grid.neighbours(p) {
             if segment.get(j) != Some(&seg) || claim.get(j) != Some(&0) {
                 continue;
             }
@@ -302,7 +310,7 @@ pub fn correct_mask(
                 && let (Some(c), Some(q)) = (claim.get_mut(j), queue.get_mut(tail))
             {
                 *c = mine;
-                *q = j as u32;
+                *q = pj;
                 tail += 1;
             }
         }
@@ -367,25 +375,45 @@ struct Grid {
     height: usize,
 }
 
+/// Pixels travel through queues and the source map as packed `x | y << 16` (no division
+/// per pixel to recover the column); hence the 65 535 px limit on each side.
 impl Grid {
-    fn index(&self, px: [Real; 2]) -> Option<usize> {
-        let (u, v) = (round(px[0]), round(px[1]));
-        let inside = u >= 0.0 && v >= 0.0 && u < self.width as Real && v < self.height as Real;
-        inside.then(|| v as usize * self.width + u as usize)
+    const fn pack(x: usize, y: usize) -> u32 {
+        (x as u32) | ((y as u32) << 16)
     }
 
-    /// The 4-neighbours of pixel `i` inside the image.
-    fn neighbours(&self, i: usize) -> impl Iterator<Item = usize> {
+    const fn unpack(p: u32) -> (usize, usize) {
+        ((p & 0xFFFF) as usize, (p >> 16) as usize)
+    }
+
+    const fn index(&self, p: u32) -> usize {
+        let (x, y) = Self::unpack(p);
+        y * self.width + x
+    }
+
+    /// The pixel nearest `px`: `(index, packed)`, if inside the image.
+    fn locate(&self, px: [Real; 2]) -> Option<(usize, u32)> {
+        let (u, v) = (round(px[0]), round(px[1]));
+        let inside = u >= 0.0 && v >= 0.0 && u < self.width as Real && v < self.height as Real;
+        inside.then(|| {
+            let (x, y) = (u as usize, v as usize);
+            (y * self.width + x, Self::pack(x, y))
+        })
+    }
+
+    /// The 4-neighbours of packed pixel `p` inside the image: `(index, packed)`.
+    fn neighbours(&self, p: u32) -> impl Iterator<Item = (usize, u32)> {
+        let (x, y) = Self::unpack(p);
+        let i = y * self.width + x;
         let w = self.width;
-        let x = i % w;
-        let n = w * self.height;
-        let left = if x > 0 { i.wrapping_sub(1) } else { usize::MAX };
-        let right = if x + 1 < w { i + 1 } else { usize::MAX };
-        let up = i.checked_sub(w).unwrap_or(usize::MAX);
-        let down = if i + w < n { i + w } else { usize::MAX };
-        [left, right, up, down]
-            .into_iter()
-            .filter(|&j| j != usize::MAX)
+        [
+            (x > 0).then(|| (i.wrapping_sub(1), p.wrapping_sub(1))),
+            (x + 1 < w).then(|| (i + 1, p + 1)),
+            (y > 0).then(|| (i.wrapping_sub(w), p.wrapping_sub(1 << 16))),
+            (y + 1 < self.height).then(|| (i + w, p + (1 << 16))),
+        ]
+        .into_iter()
+        .flatten()
     }
 }
 
@@ -425,7 +453,7 @@ fn splat(input: &MotionInput<'_>, depth_bits: &mut [u32], source: &mut [u32], ca
                 && z.to_bits() < *d
             {
                 *d = z.to_bits();
-                *s = (y * width + x) as u32;
+                *s = Grid::pack(x, y);
                 *c = label;
             }
         }
@@ -457,19 +485,19 @@ fn label_segments(
         let (mut head, mut tail) = (0, 0);
         if let (Some(s), Some(q)) = (segment.get_mut(start), queue.get_mut(0)) {
             *s = id;
-            *q = start as u32;
+            *q = Grid::pack(start % grid.width, start / grid.width);
             tail = 1;
         }
         while head < tail {
-            let Some(&i) = queue.get(head) else { break };
+            let Some(&p) = queue.get(head) else { break };
             head += 1;
-            for j in grid.neighbours(i as usize) {
+            for (j, pj) in grid.neighbours(p) {
                 if segment.get(j) == Some(&0)
                     && key.get(j) == Some(&k)
                     && let (Some(s), Some(q)) = (segment.get_mut(j), queue.get_mut(tail))
                 {
                     *s = id;
-                    *q = j as u32;
+                    *q = pj;
                     tail += 1;
                 }
             }
@@ -485,8 +513,11 @@ fn label_segments(
     for t in segs.target.iter_mut().take(count + 1) {
         *t = NONE;
     }
-    for i in 0..segment.len() {
+    for i in 0..segment.len().min(grid.width * grid.height) {
         let a = segment.get(i).copied().unwrap_or(0);
+        if a == 0 {
+            continue;
+        }
         let right = (i % grid.width + 1 < grid.width).then(|| i + 1);
         let down = Some(i + grid.width);
         for j in [right, down].into_iter().flatten() {
@@ -539,8 +570,8 @@ fn collect_seeds(
         }
         for px in frame.px_t1 {
             let seg = grid
-                .index(px)
-                .and_then(|i| segment.get(i).copied())
+                .locate(px)
+                .and_then(|(i, _)| segment.get(i).copied())
                 .unwrap_or(0);
             if let (true, Some(slot)) = (seg != 0, seeds.get_mut(len)) {
                 *slot = [seg, u32::from(g), 1];

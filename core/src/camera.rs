@@ -90,6 +90,9 @@ mod tests {
     #[test]
     fn bad_intrinsics_are_errors() {
         assert_eq!(Intrinsics::new(0.0, 1.0, 0.0, 0.0), Err(Error::BadConfig));
-        assert_eq!(Intrinsics::new(f32::NAN, 1.0, 0.0, 0.0), Err(Error::NonFinite));
+        assert_eq!(
+            Intrinsics::new(f32::NAN, 1.0, 0.0, 0.0),
+            Err(Error::NonFinite)
+        );
     }
 }

@@ -203,7 +203,11 @@ impl<'a, T> ImageViewMut<'a, T> {
 #[must_use]
 #[inline]
 pub fn valid_depth(z: f32) -> Option<f32> {
-    if z.is_finite() && z > 0.0 { Some(z) } else { None }
+    if z.is_finite() && z > 0.0 {
+        Some(z)
+    } else {
+        None
+    }
 }
 
 #[cfg(test)]
@@ -214,8 +218,14 @@ mod tests {
     fn layout_is_checked_and_accessors_never_panic() {
         let data = [1u8, 2, 3, 4, 5, 6, 7];
         assert!(ImageView::new(3, 2, 4, &data).is_ok());
-        assert_eq!(ImageView::new(3, 3, 4, &data).err(), Some(Error::BadImageLayout));
-        assert_eq!(ImageView::new(5, 1, 4, &data).err(), Some(Error::BadImageLayout));
+        assert_eq!(
+            ImageView::new(3, 3, 4, &data).err(),
+            Some(Error::BadImageLayout)
+        );
+        assert_eq!(
+            ImageView::new(5, 1, 4, &data).err(),
+            Some(Error::BadImageLayout)
+        );
         assert_eq!(
             ImageView::new(usize::MAX, 2, usize::MAX, &data).err(),
             Some(Error::BadImageLayout)

@@ -93,7 +93,11 @@ impl Twist {
         let (qw, qv) = (q.w * sign, q.imag() * sign);
         let s = qv.norm(); // sin(θ/2)
         let theta = 2.0 * atan2(s, qw);
-        let scale = if s > 1e-7 { theta / s } else { 2.0 / qw.max(1e-7) };
+        let scale = if s > 1e-7 {
+            theta / s
+        } else {
+            2.0 / qw.max(1e-7)
+        };
         let w = qv * scale;
         let theta2 = theta * theta;
         // V⁻¹ = I − ½[w]× + c [w]×², c = (1 − (θ/2)·cot(θ/2))/θ², cot(θ/2) = qw/s.
@@ -262,11 +266,18 @@ mod tests {
         assert!((x - Vector3::x()).norm() < 1e-6 && (z - Vector3::z()).norm() < 1e-6);
         assert!((f.translation.vector - Vector3::new(1.0, 1.0, 1.0)).norm() < 1e-6);
         let p = Point3::new(0.0, 0.0, 0.0);
-        assert!(try_frame_from_points(&p, &Point3::new(1.0, 0.0, 0.0), &Point3::new(2.0, 0.0, 0.0)).is_none());
+        assert!(
+            try_frame_from_points(&p, &Point3::new(1.0, 0.0, 0.0), &Point3::new(2.0, 0.0, 0.0))
+                .is_none()
+        );
         assert!(try_frame_from_points(&p, &p, &Point3::new(2.0, 1.0, 0.0)).is_none());
         assert!(
-            try_frame_from_points(&p, &Point3::new(f32::NAN, 0.0, 0.0), &Point3::new(0.0, 1.0, 0.0))
-                .is_none()
+            try_frame_from_points(
+                &p,
+                &Point3::new(f32::NAN, 0.0, 0.0),
+                &Point3::new(0.0, 1.0, 0.0)
+            )
+            .is_none()
         );
     }
 

@@ -4,9 +4,21 @@
 //!
 //! `riseg` is the host side of RISeg. It owns everything `riseg-core` leaves to the caller:
 //! buffers (`Vec`-backed workspaces), file I/O, devices, the simulator and the CLI.
+//!
+//! - [`imageio`]: owned images, PNG and Middlebury `.flo` files, atomic writes.
+//! - [`scene`]: the scene folder format (read and written).
+//! - [`sim`]: the simulated tabletop (rapier3d physics, parry3d ray-cast RGB-D, exact
+//!   ground truth).
+//! - [`gen`]: simulated datasets in the scene folder format (`riseg gen`).
+//! - [`preview`]: a picture of a scene for people.
 
 pub mod eval;
+pub mod r#gen;
+pub mod imageio;
 pub mod metrics;
+pub mod preview;
 pub mod robot;
+pub mod scene;
+pub mod sim;
 pub mod synthetic;
 pub mod workspace;

@@ -1,0 +1,285 @@
+//! Simulated datasets in the scene folder format (`riseg gen`).
+//!
+//! Scene `i` of a dataset with seed `S` is simulated from [`scene_seed`]`(S, i)`: the
+//! initial frame, then `pushes` scripted pushes ([`SimScene::plan_push`]: one object of a
+//! touching pair, across the line joining the pair, [`DEFAULT_PUSH_LEN_M`]), each followed
+//! by a frame. Every frame gets labels; every push gets the exact flow and an
+//! `actions.json` entry in the camera frame.
+//!
+//! A simulated scene is kept only if it is a useful benchmark scene: every object is seen
+//! by at least [`MIN_VISIBLE_PX`] pixels in every frame, every push finds a touching pair
+//! and moves some object by more than [`MIN_PUSH_FLOW_PX`] of ground-truth flow, and no
+//! object leaves the table. Otherwise the next attempt seed is tried (at most
+//! [`MAX_ATTEMPTS`]); [`GeneratedScene::attempts`] says how many were needed. All of this is
+//! deterministic, so the same dataset seed gives the same files, byte for byte.
+//!
+//! Output layout: `OUT/scene_000/ …` (see [`crate::scene`]) and a preview per scene,
+//! `OUT/preview/scene_000.png` ([`crate::preview`]).
+
+use std::{
+    fs,
+    path::{Path, PathBuf},
+};
+
+use crate::{
+    imageio::{Gray16Image, ImageIoError, RgbImage, write_rgb8},
+    preview::preview,
+    scene::{PushAction, Scene, SceneCamera, SceneError},
+    sim::{
+        DEFAULT_PUSH_LEN_M, ObjectBounds, Push, RgbdFrame, SimError, SimScene,
+        TABLE_HALF_EXTENTS_M, ground_truth_flow,
+    },
+};
+
+/// Depth unit of generated scenes: millimetres.
+pub const DEPTH_UNIT_M: f32 = 0.001;
+/// Fewest pixels every object must show in every frame.
+pub const MIN_VISIBLE_PX: usize = 150;
+/// Every push must move some object by more than this much ground-truth flow, pixels.
+pub const MIN_PUSH_FLOW_PX: f32 = 1.0;
+/// Simulation attempts per scene before [`GenError::NoValidScene`].
+pub const MAX_ATTEMPTS: u32 = 20;
+/// Folder of the per-scene previews inside the output folder.
+pub const PREVIEW_DIR: &str = "preview";
+
+/// Why generating a dataset failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum GenError {
+    /// The simulator refused a request.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// Writing a scene failed.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// Writing a preview failed.
+    #[error(transparent)]
+    Image(#[from] ImageIoError),
+    /// The output folder could not be created.
+    #[error("{}: cannot create folder: {source}", path.display())]
+    CreateDir {
+        /// The folder.
+        path: PathBuf,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// No attempt gave a usable scene.
+    #[error("seed {seed}: no usable scene in {attempts} attempts (last: {reason})")]
+    NoValidScene {
+        /// The scene seed.
+        seed: u64,
+        /// Attempts made.
+        attempts: u32,
+        /// Why the last attempt was rejected.
+        reason: String,
+    },
+}
+
+/// One simulated scene, ready to write.
+#[derive(Debug, Clone)]
+pub struct GeneratedScene {
+    /// The scene in the folder format (depth in millimetres, labels, flow, actions).
+    pub scene: Scene,
+    /// Its preview picture.
+    pub preview: RgbImage,
+    /// The pushes in the world (table) frame.
+    pub pushes: Vec<Push>,
+    /// Number of objects.
+    pub objects: usize,
+    /// Attempts needed (1 = the first simulation was usable).
+    pub attempts: u32,
+}
+
+/// The seed of scene `index` in a dataset with seed `dataset_seed` (splitmix64 of both).
+#[must_use]
+pub fn scene_seed(dataset_seed: u64, index: usize) -> u64 {
+    let mut z = dataset_seed ^ (index as u64).wrapping_mul(0xD1B5_4A32_D192_ED03);
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+fn depth_to_units(frame: &RgbdFrame) -> Gray16Image {
+    frame.depth_m.map(|&d| {
+        let units = (d / DEPTH_UNIT_M).round();
+        if units >= 1.0 {
+            units.min(f32::from(u16::MAX)) as u16
+        } else {
+            0
+        }
+    })
+}
+
+fn visible_px(labels: &Gray16Image, label: u16) -> usize {
+    labels.as_slice().iter().filter(|&&l| l == label).count()
+}
+
+fn on_table(bounds: &[ObjectBounds]) -> bool {
+    bounds.iter().all(|b| {
+        b.min_m.z > -0.002
+            && b.min_m.x > -TABLE_HALF_EXTENTS_M[0]
+            && b.max_m.x < TABLE_HALF_EXTENTS_M[0]
+            && b.min_m.y > -TABLE_HALF_EXTENTS_M[1]
+            && b.max_m.y < TABLE_HALF_EXTENTS_M[1]
+    })
+}
+
+/// Simulates scene `seed` with `pushes` pushes (see the module docs).
+///
+/// # Errors
+/// [`GenError::NoValidScene`] if no attempt was usable.
+pub fn generate_scene(seed: u64, pushes: usize) -> Result<GeneratedScene, GenError> {
+    let mut reason = String::new();
+    for attempt in 0..MAX_ATTEMPTS {
+        let attempt_seed = if attempt == 0 {
+            seed
+        } else {
+            scene_seed(seed, attempt as usize)
+        };
+        match simulate(attempt_seed, pushes)? {
+            Ok(mut g) => {
+                g.attempts = attempt + 1;
+                return Ok(g);
+            }
+            Err(why) => reason = why,
+        }
+    }
+    Err(GenError::NoValidScene {
+        seed,
+        attempts: MAX_ATTEMPTS,
+        reason,
+    })
+}
+
+/// One attempt: `Ok(Err(reason))` when the scene is not usable.
+fn simulate(seed: u64, pushes: usize) -> Result<Result<GeneratedScene, String>, GenError> {
+    let mut sim = match SimScene::new(seed) {
+        Ok(sim) => sim,
+        Err(SimError::Placement { .. }) => return Ok(Err("no object placement".into())),
+        Err(e) => return Err(e.into()),
+    };
+    let labels: Vec<u16> = sim.objects().iter().map(|o| o.label).collect();
+    let hidden = |frame: &RgbdFrame| {
+        labels
+            .iter()
+            .find(|&&l| visible_px(&frame.labels, l) < MIN_VISIBLE_PX)
+            .copied()
+    };
+    let first = sim.render();
+    if let Some(l) = hidden(&first) {
+        return Ok(Err(format!("object {l} hardly visible initially")));
+    }
+    let mut frames = vec![first];
+    let mut flows = Vec::with_capacity(pushes);
+    let mut done = Vec::with_capacity(pushes);
+    for k in 1..=pushes {
+        let Some(push) = sim.plan_push(DEFAULT_PUSH_LEN_M) else {
+            return Ok(Err(format!("no touching pair to push before push {k}")));
+        };
+        sim.push(push.start_world, push.direction_world, push.length_m)?;
+        if !on_table(&sim.object_bounds()) {
+            return Ok(Err(format!("an object left the table in push {k}")));
+        }
+        let frame = sim.render();
+        if let Some(l) = hidden(&frame) {
+            return Ok(Err(format!("object {l} hardly visible after push {k}")));
+        }
+        let prev = &frames[frames.len() - 1];
+        let flow = ground_truth_flow(
+            &prev.intrinsics,
+            &prev.world_from_camera,
+            &prev.labels,
+            &prev.true_depth_m,
+            &prev.object_poses,
+            &frame.object_poses,
+        )?;
+        let max_flow = flow
+            .as_slice()
+            .iter()
+            .map(|[dx, dy]| (dx * dx + dy * dy).sqrt())
+            .fold(0.0_f32, f32::max);
+        if max_flow <= MIN_PUSH_FLOW_PX {
+            return Ok(Err(format!("push {k} moved nothing visibly")));
+        }
+        flows.push(flow);
+        frames.push(frame);
+        done.push(push);
+    }
+
+    let config = sim.config();
+    let k = config.intrinsics;
+    let camera_from_world = sim.world_from_camera().inverse();
+    let mut actions = Vec::with_capacity(done.len());
+    for (p, number) in done.iter().zip(1u32..) {
+        let start = camera_from_world * p.start_world;
+        let dir = camera_from_world.rotation * p.direction_world;
+        let Some(px) = k.project(&start) else {
+            return Ok(Err(format!("push {number} starts behind the camera")));
+        };
+        actions.push(PushAction {
+            push: number,
+            start_px: [px.x, px.y],
+            start_cam_m: [start.x, start.y, start.z],
+            direction_cam: [dir.x, dir.y, dir.z],
+            length_m: p.length_m,
+        });
+    }
+    let scene = Scene {
+        camera: SceneCamera {
+            width: config.width,
+            height: config.height,
+            fx: k.fx,
+            fy: k.fy,
+            cx: k.cx,
+            cy: k.cy,
+            depth_unit_m: DEPTH_UNIT_M,
+        },
+        rgb: frames.iter().map(|f| f.rgb.clone()).collect(),
+        depth: frames.iter().map(depth_to_units).collect(),
+        labels: Some(frames.into_iter().map(|f| f.labels).collect()),
+        flow: Some(flows),
+        actions,
+    };
+    Ok(Ok(GeneratedScene {
+        preview: preview(&scene),
+        scene,
+        pushes: done,
+        objects: labels.len(),
+        attempts: 1,
+    }))
+}
+
+/// The folder name of scene `index`: `scene_000`, `scene_001`, ….
+#[must_use]
+pub fn scene_dir_name(index: usize) -> String {
+    format!("scene_{index:03}")
+}
+
+/// Generates `scenes` scenes from `seed` with `pushes` pushes each into `out` (created if
+/// missing), calling `on_scene(index, &scene)` after each scene is written.
+///
+/// # Errors
+/// [`GenError::CreateDir`] if `out` cannot be created; [`SceneError::Exists`] (as
+/// [`GenError::Scene`]) if a scene folder is already there; simulation and write errors.
+pub fn write_dataset(
+    out: &Path,
+    scenes: usize,
+    seed: u64,
+    pushes: usize,
+    mut on_scene: impl FnMut(usize, &GeneratedScene),
+) -> Result<(), GenError> {
+    let previews = out.join(PREVIEW_DIR);
+    fs::create_dir_all(&previews).map_err(|source| GenError::CreateDir {
+        path: previews.clone(),
+        source,
+    })?;
+    for i in 0..scenes {
+        let g = generate_scene(scene_seed(seed, i), pushes)?;
+        let name = scene_dir_name(i);
+        g.scene.write(&out.join(&name))?;
+        write_rgb8(&previews.join(format!("{name}.png")), &g.preview)?;
+        on_scene(i, &g);
+    }
+    Ok(())
+}

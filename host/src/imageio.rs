@@ -1,0 +1,627 @@
+//! Owned images and their files: 8-bit RGB PNG, 16-bit grey PNG (depth, labels) and
+//! Middlebury `.flo` optical flow.
+//!
+//! Contract:
+//! - [`Image<T>`] is row-major with no padding: pixel `(x, y)` is `data[y·width + x]`, and
+//!   `data.len() == width·height` always holds (checked on construction).
+//! - Every reader error is an [`ImageIoError`] whose message starts with the file's path and
+//!   then says the problem: missing file, unreadable file, corrupt PNG, wrong colour type or
+//!   bit depth, wrong size (see [`ImageIoError::expect_size`]), or a malformed `.flo`.
+//!   Readers never panic on any file content.
+//! - Every writer is atomic: the bytes go to a temporary file in the destination's folder,
+//!   which is flushed to disk and then renamed over the destination, so a reader sees either
+//!   the old file, or the complete new one, never half a file ([`write_atomic`]).
+//! - Encoding is deterministic: the same image gives the same bytes.
+//!
+//! `.flo` (Middlebury): little-endian `f32` magic `202021.25` (the bytes `PIEH`), `i32`
+//! width, `i32` height, then `width·height` pairs of `f32` `(dx, dy)` in row-major order.
+//! Flow is in pixels: the pixel `(x, y)` of the first image moves to `(x + dx, y + dy)`.
+
+use std::{
+    fs,
+    io::{self, BufReader, Write as _},
+    path::{Path, PathBuf},
+};
+
+use image::{
+    DynamicImage, ExtendedColorType, ImageEncoder,
+    codecs::png::{CompressionType, FilterType, PngDecoder, PngEncoder},
+};
+
+/// An owned, row-major image without padding.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Image<T> {
+    width: u32,
+    height: u32,
+    data: Vec<T>,
+}
+
+/// 8-bit RGB pixels.
+pub type RgbImage = Image<[u8; 3]>;
+/// 16-bit grey pixels: depth in the scene's depth unit, or instance labels.
+pub type Gray16Image = Image<u16>;
+/// Optical flow `(dx, dy)` in pixels.
+pub type FlowImage = Image<[f32; 2]>;
+/// Depth in metres, `0.0` where there is no reading.
+pub type DepthImage = Image<f32>;
+
+/// `data.len()` does not match `width·height` in [`Image::from_vec`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("image data has {len} pixels, {width}x{height} needs {}", (*.width as u64) * (*.height as u64))]
+pub struct ImageSizeError {
+    /// Requested width, pixels.
+    pub width: u32,
+    /// Requested height, pixels.
+    pub height: u32,
+    /// Pixels supplied.
+    pub len: usize,
+}
+
+impl<T> Image<T> {
+    /// Wraps row-major pixels.
+    ///
+    /// # Errors
+    /// [`ImageSizeError`] if `data.len() != width·height`.
+    pub fn from_vec(width: u32, height: u32, data: Vec<T>) -> Result<Self, ImageSizeError> {
+        let needed = (width as usize).checked_mul(height as usize);
+        if needed == Some(data.len()) {
+            Ok(Self {
+                width,
+                height,
+                data,
+            })
+        } else {
+            Err(ImageSizeError {
+                width,
+                height,
+                len: data.len(),
+            })
+        }
+    }
+
+    /// An image whose pixel `(x, y)` is `f(x, y)`, built row by row.
+    pub fn from_fn(width: u32, height: u32, mut f: impl FnMut(u32, u32) -> T) -> Self {
+        let mut data = Vec::with_capacity(width as usize * height as usize);
+        for y in 0..height {
+            for x in 0..width {
+                data.push(f(x, y));
+            }
+        }
+        Self {
+            width,
+            height,
+            data,
+        }
+    }
+
+    /// Width, pixels.
+    #[must_use]
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height, pixels.
+    #[must_use]
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// The pixel at `(x, y)`, or `None` outside the image.
+    #[must_use]
+    pub fn get(&self, x: u32, y: u32) -> Option<&T> {
+        if x < self.width && y < self.height {
+            self.data.get(y as usize * self.width as usize + x as usize)
+        } else {
+            None
+        }
+    }
+
+    /// All pixels, row-major.
+    #[must_use]
+    pub fn as_slice(&self) -> &[T] {
+        &self.data
+    }
+
+    /// All pixels, row-major, mutable (the size cannot change).
+    pub fn as_mut_slice(&mut self) -> &mut [T] {
+        &mut self.data
+    }
+
+    /// The pixel vector, row-major.
+    #[must_use]
+    pub fn into_vec(self) -> Vec<T> {
+        self.data
+    }
+
+    /// A new image of the same size with `f` applied to every pixel.
+    #[must_use]
+    pub fn map<U>(&self, f: impl FnMut(&T) -> U) -> Image<U> {
+        Image {
+            width: self.width,
+            height: self.height,
+            data: self.data.iter().map(f).collect(),
+        }
+    }
+}
+
+/// Why reading or writing an image file failed; the message names the file.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {problem}", path.display())]
+pub struct ImageIoError {
+    /// The file.
+    pub path: PathBuf,
+    /// What is wrong with it.
+    pub problem: ImageProblem,
+}
+
+/// What is wrong with an image file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ImageProblem {
+    /// The file does not exist.
+    #[error("file not found")]
+    Missing,
+    /// The operating system refused to read, write or rename the file.
+    #[error("I/O error: {0}")]
+    Io(#[source] io::Error),
+    /// The bytes are not a PNG the decoder accepts.
+    #[error("corrupt or unsupported PNG: {0}")]
+    CorruptPng(#[source] image::ImageError),
+    /// A valid PNG of the wrong colour type or bit depth.
+    #[error("expected {expected}, found {found}")]
+    WrongFormat {
+        /// What the caller needs, e.g. "16-bit greyscale PNG".
+        expected: &'static str,
+        /// What the file holds, e.g. "8-bit greyscale".
+        found: String,
+    },
+    /// The image is valid but not the size the caller needs.
+    #[error("expected {expected_width}x{expected_height} pixels, found {width}x{height}")]
+    WrongSize {
+        /// Width the caller needs.
+        expected_width: u32,
+        /// Height the caller needs.
+        expected_height: u32,
+        /// Width in the file.
+        width: u32,
+        /// Height in the file.
+        height: u32,
+    },
+    /// The `.flo` file is malformed.
+    #[error("not a valid Middlebury .flo file: {0}")]
+    CorruptFlo(String),
+}
+
+impl ImageIoError {
+    fn new(path: &Path, problem: ImageProblem) -> Self {
+        Self {
+            path: path.to_path_buf(),
+            problem,
+        }
+    }
+
+    fn io(path: &Path, e: io::Error) -> Self {
+        let problem = if e.kind() == io::ErrorKind::NotFound {
+            ImageProblem::Missing
+        } else {
+            ImageProblem::Io(e)
+        };
+        Self::new(path, problem)
+    }
+
+    /// Checks that `image`, read from `path`, is `width` x `height` pixels.
+    ///
+    /// # Errors
+    /// [`ImageProblem::WrongSize`] naming `path` otherwise.
+    pub fn expect_size<T>(
+        path: &Path,
+        image: &Image<T>,
+        width: u32,
+        height: u32,
+    ) -> Result<(), Self> {
+        if image.width == width && image.height == height {
+            Ok(())
+        } else {
+            Err(Self::new(
+                path,
+                ImageProblem::WrongSize {
+                    expected_width: width,
+                    expected_height: height,
+                    width: image.width,
+                    height: image.height,
+                },
+            ))
+        }
+    }
+}
+
+/// Writes `bytes` to `path` atomically: a temporary file in the same folder, flushed to
+/// disk, then renamed over `path`. On error the temporary file is removed.
+///
+/// # Errors
+/// [`ImageProblem::Io`] naming `path` if the folder is missing or not writable.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ImageIoError> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .map_or_else(|| "unnamed".into(), |n| n.to_string_lossy().into_owned());
+    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
+    let result = (|| {
+        let mut file = fs::File::create(&tmp)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        fs::rename(&tmp, path)
+    })();
+    result.map_err(|e| {
+        // Best effort: the temporary file may not exist if creating it failed.
+        let _ = fs::remove_file(&tmp);
+        ImageIoError::new(path, ImageProblem::Io(e))
+    })
+}
+
+fn read_bytes(path: &Path) -> Result<Vec<u8>, ImageIoError> {
+    fs::read(path).map_err(|e| ImageIoError::io(path, e))
+}
+
+fn decode_png(path: &Path) -> Result<DynamicImage, ImageIoError> {
+    let file = fs::File::open(path).map_err(|e| ImageIoError::io(path, e))?;
+    let corrupt = |e| ImageIoError::new(path, ImageProblem::CorruptPng(e));
+    let decoder = PngDecoder::new(BufReader::new(file)).map_err(corrupt)?;
+    DynamicImage::from_decoder(decoder).map_err(corrupt)
+}
+
+fn format_name(image: &DynamicImage) -> String {
+    match image {
+        DynamicImage::ImageLuma8(_) => "8-bit greyscale".into(),
+        DynamicImage::ImageLumaA8(_) => "8-bit greyscale with alpha".into(),
+        DynamicImage::ImageRgb8(_) => "8-bit RGB".into(),
+        DynamicImage::ImageRgba8(_) => "8-bit RGBA".into(),
+        DynamicImage::ImageLuma16(_) => "16-bit greyscale".into(),
+        DynamicImage::ImageLumaA16(_) => "16-bit greyscale with alpha".into(),
+        DynamicImage::ImageRgb16(_) => "16-bit RGB".into(),
+        DynamicImage::ImageRgba16(_) => "16-bit RGBA".into(),
+        other => format!("{:?}", other.color()),
+    }
+}
+
+fn wrong_format(path: &Path, expected: &'static str, found: &DynamicImage) -> ImageIoError {
+    ImageIoError::new(
+        path,
+        ImageProblem::WrongFormat {
+            expected,
+            found: format_name(found),
+        },
+    )
+}
+
+/// Reads an 8-bit RGB PNG. An 8-bit RGBA PNG is accepted too (alpha is dropped), since
+/// other tools save colour images that way.
+///
+/// # Errors
+/// Missing file, I/O error, corrupt PNG, or any other colour type or bit depth.
+pub fn read_rgb8(path: &Path) -> Result<RgbImage, ImageIoError> {
+    let decoded = decode_png(path)?;
+    let (width, height) = (decoded.width(), decoded.height());
+    let data: Vec<[u8; 3]> = match &decoded {
+        DynamicImage::ImageRgb8(img) => img
+            .as_raw()
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect(),
+        DynamicImage::ImageRgba8(img) => img
+            .as_raw()
+            .chunks_exact(4)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect(),
+        other => return Err(wrong_format(path, "8-bit RGB PNG", other)),
+    };
+    from_decoded(path, width, height, data)
+}
+
+/// Reads a 16-bit greyscale PNG (depth, labels). Any other bit depth is an error, so an
+/// 8-bit depth image, whose values cannot hold millimetres, is refused.
+///
+/// # Errors
+/// Missing file, I/O error, corrupt PNG, or not 16-bit greyscale.
+pub fn read_gray16(path: &Path) -> Result<Gray16Image, ImageIoError> {
+    let decoded = decode_png(path)?;
+    match decoded {
+        DynamicImage::ImageLuma16(img) => {
+            let (width, height) = img.dimensions();
+            from_decoded(path, width, height, img.into_raw())
+        }
+        other => Err(wrong_format(path, "16-bit greyscale PNG", &other)),
+    }
+}
+
+/// Reads a 16-bit or 8-bit greyscale PNG as 16-bit values (8-bit values are widened
+/// unchanged, not rescaled). For label images, where other tools often save 8 bits.
+///
+/// # Errors
+/// Missing file, I/O error, corrupt PNG, or not greyscale.
+pub fn read_gray_widened(path: &Path) -> Result<Gray16Image, ImageIoError> {
+    let decoded = decode_png(path)?;
+    match decoded {
+        DynamicImage::ImageLuma16(img) => {
+            let (width, height) = img.dimensions();
+            from_decoded(path, width, height, img.into_raw())
+        }
+        DynamicImage::ImageLuma8(img) => {
+            let (width, height) = img.dimensions();
+            let data = img.into_raw().into_iter().map(u16::from).collect();
+            from_decoded(path, width, height, data)
+        }
+        other => Err(wrong_format(path, "8- or 16-bit greyscale PNG", &other)),
+    }
+}
+
+fn from_decoded<T>(
+    path: &Path,
+    width: u32,
+    height: u32,
+    data: Vec<T>,
+) -> Result<Image<T>, ImageIoError> {
+    Image::from_vec(width, height, data).map_err(|e| {
+        ImageIoError::new(
+            path,
+            ImageProblem::CorruptPng(image::ImageError::IoError(io::Error::other(e))),
+        )
+    })
+}
+
+fn encode_png(
+    path: &Path,
+    bytes: &[u8],
+    width: u32,
+    height: u32,
+    color: ExtendedColorType,
+) -> Result<Vec<u8>, ImageIoError> {
+    let mut out = Vec::new();
+    PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Adaptive)
+        .write_image(bytes, width, height, color)
+        .map_err(|e| ImageIoError::new(path, ImageProblem::CorruptPng(e)))?;
+    Ok(out)
+}
+
+/// Writes an 8-bit RGB PNG atomically.
+///
+/// # Errors
+/// I/O errors, or an image the PNG encoder refuses (e.g. zero width), naming `path`.
+pub fn write_rgb8(path: &Path, image: &RgbImage) -> Result<(), ImageIoError> {
+    let bytes: Vec<u8> = image.data.iter().flatten().copied().collect();
+    let png = encode_png(
+        path,
+        &bytes,
+        image.width,
+        image.height,
+        ExtendedColorType::Rgb8,
+    )?;
+    write_atomic(path, &png)
+}
+
+/// Writes a 16-bit greyscale PNG atomically.
+///
+/// # Errors
+/// As [`write_rgb8`].
+pub fn write_gray16(path: &Path, image: &Gray16Image) -> Result<(), ImageIoError> {
+    // The encoder takes native-endian samples and writes PNG's big-endian ones.
+    let bytes: Vec<u8> = image.data.iter().flat_map(|v| v.to_ne_bytes()).collect();
+    let png = encode_png(
+        path,
+        &bytes,
+        image.width,
+        image.height,
+        ExtendedColorType::L16,
+    )?;
+    write_atomic(path, &png)
+}
+
+/// The `.flo` magic number (the bytes `PIEH` read as a little-endian `f32`).
+pub const FLO_MAGIC: f32 = 202_021.25;
+/// Largest width or height accepted from a `.flo` header (bounds memory on corrupt files).
+pub const FLO_MAX_SIDE: u32 = 1 << 15;
+const FLO_HEADER_BYTES: usize = 12;
+
+/// Reads a Middlebury `.flo` file.
+///
+/// # Errors
+/// Missing file, I/O error, wrong magic, non-positive or oversized dimensions, or a file
+/// length that does not match its header.
+pub fn read_flo(path: &Path) -> Result<FlowImage, ImageIoError> {
+    let bytes = read_bytes(path)?;
+    let corrupt = |msg: String| ImageIoError::new(path, ImageProblem::CorruptFlo(msg));
+    let word = |i: usize| -> Option<[u8; 4]> { bytes.get(i..i + 4)?.try_into().ok() };
+    let (Some(m), Some(w), Some(h)) = (word(0), word(4), word(8)) else {
+        return Err(corrupt(format!(
+            "{} bytes, shorter than the 12-byte header",
+            bytes.len()
+        )));
+    };
+    let magic = f32::from_le_bytes(m);
+    if magic.to_bits() != FLO_MAGIC.to_bits() {
+        return Err(corrupt(format!("magic is {magic}, expected {FLO_MAGIC}")));
+    }
+    let (w, h) = (i32::from_le_bytes(w), i32::from_le_bytes(h));
+    let side_ok = |s: i32| s > 0 && s as u32 <= FLO_MAX_SIDE;
+    if !side_ok(w) || !side_ok(h) {
+        return Err(corrupt(format!(
+            "header says {w}x{h} pixels; each side must be 1..={FLO_MAX_SIDE}"
+        )));
+    }
+    let (width, height) = (w as u32, h as u32);
+    let pixels = width as usize * height as usize;
+    let expected = FLO_HEADER_BYTES + pixels * 8;
+    if bytes.len() != expected {
+        return Err(corrupt(format!(
+            "{} bytes, a {width}x{height} flow needs {expected}",
+            bytes.len()
+        )));
+    }
+    let data: Vec<[f32; 2]> = bytes[FLO_HEADER_BYTES..]
+        .chunks_exact(8)
+        .map(|c| {
+            [
+                f32::from_le_bytes([c[0], c[1], c[2], c[3]]),
+                f32::from_le_bytes([c[4], c[5], c[6], c[7]]),
+            ]
+        })
+        .collect();
+    Image::from_vec(width, height, data).map_err(|e| corrupt(e.to_string()))
+}
+
+/// Writes a Middlebury `.flo` file atomically.
+///
+/// # Errors
+/// An image side above [`FLO_MAX_SIDE`] (or zero), or I/O errors, naming `path`.
+pub fn write_flo(path: &Path, flow: &FlowImage) -> Result<(), ImageIoError> {
+    let side_ok = |s: u32| s > 0 && s <= FLO_MAX_SIDE;
+    if !side_ok(flow.width) || !side_ok(flow.height) {
+        return Err(ImageIoError::new(
+            path,
+            ImageProblem::CorruptFlo(format!(
+                "cannot write a {}x{} flow; each side must be 1..={FLO_MAX_SIDE}",
+                flow.width, flow.height
+            )),
+        ));
+    }
+    let mut bytes = Vec::with_capacity(FLO_HEADER_BYTES + flow.data.len() * 8);
+    bytes.extend_from_slice(&FLO_MAGIC.to_le_bytes());
+    // Both sides are at most FLO_MAX_SIDE, so they fit in i32.
+    bytes.extend_from_slice(&(flow.width as i32).to_le_bytes());
+    bytes.extend_from_slice(&(flow.height as i32).to_le_bytes());
+    for [dx, dy] in &flow.data {
+        bytes.extend_from_slice(&dx.to_le_bytes());
+        bytes.extend_from_slice(&dy.to_le_bytes());
+    }
+    write_atomic(path, &bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn temp_dir(tag: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("riseg-imageio-{tag}-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn files_in(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
+    #[test]
+    fn round_trips_are_exact_and_leave_no_temp_files() {
+        let dir = temp_dir("roundtrip");
+        let rgb = RgbImage::from_fn(7, 5, |x, y| [x as u8 * 30, y as u8 * 40, 255 - x as u8]);
+        let gray = Gray16Image::from_fn(7, 5, |x, y| (x * 9000 + y) as u16);
+        let flow = FlowImage::from_fn(7, 5, |x, y| [x as f32 * 0.5 - 1.0, -(y as f32) * 0.25]);
+        write_rgb8(&dir.join("c.png"), &rgb).unwrap();
+        write_gray16(&dir.join("d.png"), &gray).unwrap();
+        write_flo(&dir.join("f.flo"), &flow).unwrap();
+        assert_eq!(read_rgb8(&dir.join("c.png")).unwrap(), rgb);
+        assert_eq!(read_gray16(&dir.join("d.png")).unwrap(), gray);
+        assert_eq!(read_gray_widened(&dir.join("d.png")).unwrap(), gray);
+        assert_eq!(read_flo(&dir.join("f.flo")).unwrap(), flow);
+        assert_eq!(files_in(&dir), ["c.png", "d.png", "f.flo"]);
+        // Overwriting replaces the file whole.
+        write_gray16(&dir.join("d.png"), &Gray16Image::from_fn(2, 2, |_, _| 7)).unwrap();
+        assert_eq!(read_gray16(&dir.join("d.png")).unwrap().as_slice(), [7; 4]);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn flo_layout_is_middlebury() {
+        let dir = temp_dir("flo-layout");
+        let path = dir.join("f.flo");
+        let flow = FlowImage::from_vec(2, 1, vec![[1.0, 2.0], [3.0, 4.0]]).unwrap();
+        write_flo(&path, &flow).unwrap();
+        let bytes = fs::read(&path).unwrap();
+        assert_eq!(&bytes[0..4], b"PIEH");
+        assert_eq!(i32::from_le_bytes(bytes[4..8].try_into().unwrap()), 2);
+        assert_eq!(i32::from_le_bytes(bytes[8..12].try_into().unwrap()), 1);
+        let floats: Vec<f32> = bytes[12..]
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        assert_eq!(floats, [1.0, 2.0, 3.0, 4.0]);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn bad_files_are_errors_that_name_the_file() {
+        let dir = temp_dir("bad");
+        let message = |e: ImageIoError| e.to_string();
+
+        let missing = dir.join("missing.png");
+        let e = read_rgb8(&missing).unwrap_err();
+        assert!(matches!(e.problem, ImageProblem::Missing));
+        assert!(message(e).contains("missing.png"));
+
+        let garbage = dir.join("garbage.png");
+        fs::write(&garbage, b"\x89PNG\r\n\x1a\nnot really").unwrap();
+        let e = read_gray16(&garbage).unwrap_err();
+        assert!(matches!(e.problem, ImageProblem::CorruptPng(_)), "{e}");
+        assert!(message(e).contains("garbage.png"));
+
+        let rgb = dir.join("rgb.png");
+        write_rgb8(&rgb, &RgbImage::from_fn(3, 2, |_, _| [1, 2, 3])).unwrap();
+        let e = read_gray16(&rgb).unwrap_err();
+        assert!(message(e).contains("expected 16-bit greyscale PNG, found 8-bit RGB"));
+        let gray = dir.join("gray.png");
+        write_gray16(&gray, &Gray16Image::from_fn(3, 2, |_, _| 1)).unwrap();
+        let e = read_rgb8(&gray).unwrap_err();
+        assert!(message(e).contains("found 16-bit greyscale"));
+
+        let img = read_gray16(&gray).unwrap();
+        let e = ImageIoError::expect_size(&gray, &img, 4, 2).unwrap_err();
+        assert!(message(e).contains("gray.png: expected 4x2 pixels, found 3x2"));
+
+        let flo = dir.join("bad.flo");
+        for (bytes, needle) in [
+            (b"PIE".to_vec(), "shorter than the 12-byte header"),
+            ([b"XXXX".as_slice(), &[0; 8]].concat(), "magic"),
+            (
+                [
+                    b"PIEH".as_slice(),
+                    &(-1i32).to_le_bytes(),
+                    &1i32.to_le_bytes(),
+                ]
+                .concat(),
+                "header says -1x1",
+            ),
+            (
+                [
+                    b"PIEH".as_slice(),
+                    &1i32.to_le_bytes(),
+                    &1i32.to_le_bytes(),
+                    &[0; 4],
+                ]
+                .concat(),
+                "16 bytes, a 1x1 flow needs 20",
+            ),
+        ] {
+            fs::write(&flo, bytes).unwrap();
+            let m = message(read_flo(&flo).unwrap_err());
+            assert!(m.contains("bad.flo") && m.contains(needle), "{m}");
+        }
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn image_size_is_checked() {
+        assert!(Image::from_vec(2, 2, vec![0u8; 3]).is_err());
+        let img = Image::from_vec(2, 2, vec![1u8, 2, 3, 4]).unwrap();
+        assert_eq!(img.get(1, 1), Some(&4));
+        assert_eq!(img.get(2, 0), None);
+    }
+}

@@ -1,0 +1,594 @@
+//! The scene folder: one recorded or simulated scene, its frames before and after each
+//! push, optional ground truth, and the pushes.
+//!
+//! ```text
+//! DATASET/
+//!   scene_000/
+//!     scene_camera.json   {"width": 640, "height": 480, "fx": 615.0, "fy": 615.0,
+//!                          "cx": 319.5, "cy": 239.5, "depth_unit_m": 0.001}
+//!     rgb/000000.png      8-bit RGB; frame t = the scene after t pushes (000000 = initial)
+//!     depth/000000.png    16-bit, depth_unit_m units (millimetres), 0 = no reading
+//!     label/000000.png    16-bit instance ids, 0 = table/background (optional: ground truth)
+//!     flow/000000.flo     forward flow from frame t to t+1 (optional: ground truth), Middlebury
+//!     actions.json        [{"push": 1, "start_px": [u, v], "start_cam_m": [x, y, z],
+//!                           "direction_cam": [dx, dy, dz], "length_m": 0.02}, ...]
+//!   scene_001/ ...
+//! ```
+//!
+//! Contract of [`Scene::read`] (the folder may come from any tool, not only riseg):
+//! - `scene_camera.json` and `rgb/` are required; there must be at least one frame.
+//!   Frames are named with six digits from `000000` without gaps; other files are ignored
+//!   (unknown JSON fields too).
+//! - `depth/` holds exactly as many frames as `rgb/`, all 16-bit (8-bit depth is refused);
+//!   `label/` is optional, and when present holds as many frames as `rgb/` (8- or 16-bit);
+//!   `flow/` is optional, and when present holds one `.flo` per push (frames − 1).
+//! - `actions.json` holds one entry per push, numbered `1, 2, …` in order. It may be absent
+//!   only when the scene has a single frame (no pushes).
+//! - Every image is the size `scene_camera.json` gives.
+//! - Any violation is a [`SceneError`] whose message starts with the offending file or
+//!   folder and says the problem.
+//!
+//! Contract of [`Scene::write`]: the scene is checked against the rules above first, then
+//! written into a hidden temporary folder beside the destination, which is renamed to the
+//! destination last, so a half-written scene never looks complete. An existing destination
+//! is never overwritten.
+
+use std::{
+    fs, io,
+    path::{Path, PathBuf},
+};
+
+use riseg_core::Intrinsics;
+use serde::{Deserialize, Serialize};
+
+use crate::imageio::{
+    FlowImage, Gray16Image, Image, ImageIoError, RgbImage, read_flo, read_gray_widened,
+    read_gray16, read_rgb8, write_atomic, write_flo, write_gray16, write_rgb8,
+};
+
+/// Intrinsics file name.
+pub const CAMERA_FILE: &str = "scene_camera.json";
+/// Pushes file name.
+pub const ACTIONS_FILE: &str = "actions.json";
+/// Colour frames folder.
+pub const RGB_DIR: &str = "rgb";
+/// Depth frames folder.
+pub const DEPTH_DIR: &str = "depth";
+/// Ground-truth instance labels folder.
+pub const LABEL_DIR: &str = "label";
+/// Ground-truth forward flow folder.
+pub const FLOW_DIR: &str = "flow";
+
+/// `scene_camera.json`: colour intrinsics (depth is aligned to colour) and the depth unit.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SceneCamera {
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Focal length along x, pixels.
+    pub fx: f32,
+    /// Focal length along y, pixels.
+    pub fy: f32,
+    /// Principal point x, pixels (from the centre of the top-left pixel).
+    pub cx: f32,
+    /// Principal point y, pixels.
+    pub cy: f32,
+    /// Metres per depth-image unit (0.001: millimetres).
+    pub depth_unit_m: f32,
+}
+
+impl SceneCamera {
+    /// The pinhole intrinsics.
+    #[must_use]
+    pub fn intrinsics(&self) -> Intrinsics {
+        Intrinsics {
+            fx: self.fx,
+            fy: self.fy,
+            cx: self.cx,
+            cy: self.cy,
+        }
+    }
+
+    /// Converts a depth-image value to metres (`0` stays `0.0`: no reading).
+    #[must_use]
+    pub fn depth_m(&self, raw: u16) -> f32 {
+        f32::from(raw) * self.depth_unit_m
+    }
+
+    fn problem(&self) -> Option<String> {
+        if self.width == 0 || self.height == 0 {
+            return Some(format!(
+                "image size {}x{} is empty",
+                self.width, self.height
+            ));
+        }
+        if ![self.fx, self.fy, self.cx, self.cy, self.depth_unit_m]
+            .iter()
+            .all(|v| v.is_finite())
+        {
+            return Some("a camera value is not finite".into());
+        }
+        if self.fx <= 0.0 || self.fy <= 0.0 {
+            return Some(format!(
+                "focal lengths must be positive (fx {}, fy {})",
+                self.fx, self.fy
+            ));
+        }
+        if self.depth_unit_m <= 0.0 {
+            return Some(format!(
+                "depth_unit_m must be positive, found {}",
+                self.depth_unit_m
+            ));
+        }
+        None
+    }
+}
+
+/// One entry of `actions.json`: the push that turned frame `push − 1` into frame `push`.
+///
+/// Everything is in the colour camera's frame (x right, y down, z forward), so a scene
+/// needs no hand-eye calibration to be read.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PushAction {
+    /// Push number, from 1.
+    pub push: u32,
+    /// Where the push starts, in the image of frame `push − 1`, pixels `[u, v]`.
+    pub start_px: [f32; 2],
+    /// Where the push starts, camera frame, metres.
+    pub start_cam_m: [f32; 3],
+    /// Unit push direction, camera frame.
+    pub direction_cam: [f32; 3],
+    /// Push length, metres.
+    pub length_m: f32,
+}
+
+/// A scene in memory: `frames()` frames, `frames() − 1` pushes.
+///
+/// `depth` holds raw depth-image values in [`SceneCamera::depth_unit_m`] units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    /// Intrinsics and depth unit.
+    pub camera: SceneCamera,
+    /// Colour frames; frame `t` is the scene after `t` pushes.
+    pub rgb: Vec<RgbImage>,
+    /// Depth frames (raw units, 0 = no reading), one per colour frame.
+    pub depth: Vec<Gray16Image>,
+    /// Ground-truth instance labels (0 = table/background), one per frame, if known.
+    pub labels: Option<Vec<Gray16Image>>,
+    /// Ground-truth forward flow from frame `t` to `t + 1`, one per push, if known.
+    pub flow: Option<Vec<FlowImage>>,
+    /// The pushes, numbered from 1.
+    pub actions: Vec<PushAction>,
+}
+
+/// Why a scene folder could not be read or written. The message starts with the file or
+/// folder at fault.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SceneError {
+    /// An image file is missing, unreadable, corrupt, of the wrong format or size.
+    #[error(transparent)]
+    Image(#[from] ImageIoError),
+    /// A required file or folder does not exist.
+    #[error("{}: not found", path.display())]
+    Missing {
+        /// The missing file or folder.
+        path: PathBuf,
+    },
+    /// The operating system refused an operation.
+    #[error("{}: I/O error: {source}", path.display())]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The OS error.
+        source: io::Error,
+    },
+    /// A JSON file does not parse or does not have the expected fields.
+    #[error("{}: malformed JSON: {source}", path.display())]
+    Json {
+        /// The JSON file.
+        path: PathBuf,
+        /// The parser's complaint (with line and column).
+        source: serde_json::Error,
+    },
+    /// The content is well formed but breaks a rule of the layout (frame counts that
+    /// disagree, gaps in frame numbers, bad camera values, misnumbered pushes).
+    #[error("{}: {reason}", path.display())]
+    Invalid {
+        /// The file or folder at fault.
+        path: PathBuf,
+        /// Which rule it breaks.
+        reason: String,
+    },
+    /// [`Scene::write`] refuses to replace an existing scene.
+    #[error("{}: already exists; remove it or write elsewhere", path.display())]
+    Exists {
+        /// The destination.
+        path: PathBuf,
+    },
+}
+
+fn invalid(path: &Path, reason: impl Into<String>) -> SceneError {
+    SceneError::Invalid {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    }
+}
+
+fn io_error(path: &Path, source: io::Error) -> SceneError {
+    if source.kind() == io::ErrorKind::NotFound {
+        SceneError::Missing {
+            path: path.to_path_buf(),
+        }
+    } else {
+        SceneError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+}
+
+/// The file name of frame `t` with extension `ext` (`"png"`, `"flo"`).
+#[must_use]
+pub fn frame_file_name(t: usize, ext: &str) -> String {
+    format!("{t:06}.{ext}")
+}
+
+/// Frame numbers of the `NNNNNN.ext` files in `dir`, sorted; `None` if `dir` does not exist.
+fn frame_numbers(dir: &Path, ext: &str) -> Result<Option<Vec<usize>>, SceneError> {
+    let entries = match fs::read_dir(dir) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(io_error(dir, e)),
+    };
+    let mut numbers = Vec::new();
+    for entry in entries {
+        let entry = entry.map_err(|e| io_error(dir, e))?;
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let Some(stem) = name
+            .strip_suffix(ext)
+            .and_then(|s| s.strip_suffix('.'))
+            .filter(|s| s.len() == 6 && s.bytes().all(|b| b.is_ascii_digit()))
+        else {
+            continue;
+        };
+        if let Ok(t) = stem.parse::<usize>() {
+            numbers.push(t);
+        }
+    }
+    numbers.sort_unstable();
+    Ok(Some(numbers))
+}
+
+/// Checks that `dir` holds frames `0..expected` (`expected = None`: any count ≥ 1, no
+/// gaps) and returns the count.
+fn check_frames(
+    dir: &Path,
+    ext: &str,
+    numbers: &[usize],
+    expected: Option<(usize, &str)>,
+) -> Result<usize, SceneError> {
+    for (t, &n) in numbers.iter().enumerate() {
+        if n != t {
+            return Err(SceneError::Missing {
+                path: dir.join(frame_file_name(t, ext)),
+            });
+        }
+    }
+    match expected {
+        Some((count, why)) if numbers.len() != count => Err(invalid(
+            dir,
+            format!("{} frame files, expected {count} ({why})", numbers.len()),
+        )),
+        None if numbers.is_empty() => Err(invalid(dir, format!("no {ext} frames"))),
+        _ => Ok(numbers.len()),
+    }
+}
+
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SceneError> {
+    let text = fs::read(path).map_err(|e| io_error(path, e))?;
+    serde_json::from_slice(&text).map_err(|source| SceneError::Json {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+fn read_sized<T>(
+    path: &Path,
+    camera: &SceneCamera,
+    read: impl Fn(&Path) -> Result<Image<T>, ImageIoError>,
+) -> Result<Image<T>, SceneError> {
+    let image = read(path)?;
+    ImageIoError::expect_size(path, &image, camera.width, camera.height)?;
+    Ok(image)
+}
+
+fn check_actions(path: &Path, actions: &[PushAction], pushes: usize) -> Result<(), SceneError> {
+    if actions.len() != pushes {
+        return Err(invalid(
+            path,
+            format!(
+                "{} pushes listed, expected {pushes} (one per frame after the first)",
+                actions.len()
+            ),
+        ));
+    }
+    for (i, a) in actions.iter().enumerate() {
+        if a.push as usize != i + 1 {
+            return Err(invalid(
+                path,
+                format!("entry {} has \"push\": {}, expected {}", i, a.push, i + 1),
+            ));
+        }
+        let finite = a
+            .start_px
+            .iter()
+            .chain(&a.start_cam_m)
+            .chain(&a.direction_cam)
+            .chain(core::iter::once(&a.length_m))
+            .all(|v| v.is_finite());
+        if !finite {
+            return Err(invalid(
+                path,
+                format!("push {} has a non-finite value", a.push),
+            ));
+        }
+    }
+    Ok(())
+}
+
+impl Scene {
+    /// Number of frames (pushes + 1).
+    #[must_use]
+    pub fn frames(&self) -> usize {
+        self.rgb.len()
+    }
+
+    /// Reads and checks a scene folder (see the module docs for the rules).
+    ///
+    /// # Errors
+    /// A [`SceneError`] naming the first file or folder that breaks a rule.
+    pub fn read(dir: &Path) -> Result<Self, SceneError> {
+        if !dir.is_dir() {
+            return Err(SceneError::Missing {
+                path: dir.to_path_buf(),
+            });
+        }
+        let camera_path = dir.join(CAMERA_FILE);
+        let camera: SceneCamera = read_json(&camera_path)?;
+        if let Some(reason) = camera.problem() {
+            return Err(invalid(&camera_path, reason));
+        }
+
+        let rgb_dir = dir.join(RGB_DIR);
+        let rgb_numbers = frame_numbers(&rgb_dir, "png")?.ok_or_else(|| SceneError::Missing {
+            path: rgb_dir.clone(),
+        })?;
+        let n = check_frames(&rgb_dir, "png", &rgb_numbers, None)?;
+        let per_frame = Some((n, "one per rgb/ frame"));
+
+        let depth_dir = dir.join(DEPTH_DIR);
+        let depth_numbers =
+            frame_numbers(&depth_dir, "png")?.ok_or_else(|| SceneError::Missing {
+                path: depth_dir.clone(),
+            })?;
+        check_frames(&depth_dir, "png", &depth_numbers, per_frame)?;
+
+        let label_dir = dir.join(LABEL_DIR);
+        let has_labels = match frame_numbers(&label_dir, "png")? {
+            Some(numbers) => {
+                check_frames(&label_dir, "png", &numbers, per_frame)?;
+                true
+            }
+            None => false,
+        };
+        let flow_dir = dir.join(FLOW_DIR);
+        let has_flow = match frame_numbers(&flow_dir, "flo")? {
+            Some(numbers) => {
+                check_frames(&flow_dir, "flo", &numbers, Some((n - 1, "one per push")))?;
+                true
+            }
+            None => false,
+        };
+
+        let actions_path = dir.join(ACTIONS_FILE);
+        let actions: Vec<PushAction> = if n == 1 && !actions_path.exists() {
+            Vec::new()
+        } else {
+            read_json(&actions_path)?
+        };
+        check_actions(&actions_path, &actions, n - 1)?;
+
+        let frame = |sub: &Path, t: usize, ext: &str| sub.join(frame_file_name(t, ext));
+        let rgb = (0..n)
+            .map(|t| read_sized(&frame(&rgb_dir, t, "png"), &camera, read_rgb8))
+            .collect::<Result<Vec<_>, _>>()?;
+        let depth = (0..n)
+            .map(|t| read_sized(&frame(&depth_dir, t, "png"), &camera, read_gray16))
+            .collect::<Result<Vec<_>, _>>()?;
+        let labels = if has_labels {
+            Some(
+                (0..n)
+                    .map(|t| read_sized(&frame(&label_dir, t, "png"), &camera, read_gray_widened))
+                    .collect::<Result<Vec<_>, _>>()?,
+            )
+        } else {
+            None
+        };
+        let flow = if has_flow {
+            Some(
+                (0..n - 1)
+                    .map(|t| read_sized(&frame(&flow_dir, t, "flo"), &camera, read_flo))
+                    .collect::<Result<Vec<_>, _>>()?,
+            )
+        } else {
+            None
+        };
+        Ok(Self {
+            camera,
+            rgb,
+            depth,
+            labels,
+            flow,
+            actions,
+        })
+    }
+
+    /// Checks the in-memory scene against the layout's rules; `dir` is only used to name
+    /// the error.
+    fn check(&self, dir: &Path) -> Result<(), SceneError> {
+        if let Some(reason) = self.camera.problem() {
+            return Err(invalid(&dir.join(CAMERA_FILE), reason));
+        }
+        let n = self.rgb.len();
+        if n == 0 {
+            return Err(invalid(&dir.join(RGB_DIR), "no frames"));
+        }
+        let (w, h) = (self.camera.width, self.camera.height);
+        let sizes_ok = |sub: &str, count: usize, dims: &mut dyn Iterator<Item = (u32, u32)>| {
+            let path = dir.join(sub);
+            let dims: Vec<(u32, u32)> = dims.collect();
+            if dims.len() != count {
+                return Err(invalid(
+                    &path,
+                    format!("{} frames, expected {count}", dims.len()),
+                ));
+            }
+            match dims.iter().position(|&d| d != (w, h)) {
+                Some(t) => Err(invalid(
+                    &path,
+                    format!(
+                        "frame {t} is {}x{}, the camera is {w}x{h}",
+                        dims[t].0, dims[t].1
+                    ),
+                )),
+                None => Ok(()),
+            }
+        };
+        sizes_ok(
+            RGB_DIR,
+            n,
+            &mut self.rgb.iter().map(|i| (i.width(), i.height())),
+        )?;
+        sizes_ok(
+            DEPTH_DIR,
+            n,
+            &mut self.depth.iter().map(|i| (i.width(), i.height())),
+        )?;
+        if let Some(labels) = &self.labels {
+            sizes_ok(
+                LABEL_DIR,
+                n,
+                &mut labels.iter().map(|i| (i.width(), i.height())),
+            )?;
+        }
+        if let Some(flow) = &self.flow {
+            sizes_ok(
+                FLOW_DIR,
+                n - 1,
+                &mut flow.iter().map(|i| (i.width(), i.height())),
+            )?;
+        }
+        check_actions(&dir.join(ACTIONS_FILE), &self.actions, n - 1)
+    }
+
+    /// Writes the scene to the folder `dir`, which must not exist yet; its parent must.
+    ///
+    /// # Errors
+    /// [`SceneError::Exists`] if `dir` exists; [`SceneError::Invalid`] if the scene breaks
+    /// a layout rule (nothing is written then); I/O errors naming the file.
+    pub fn write(&self, dir: &Path) -> Result<(), SceneError> {
+        self.check(dir)?;
+        if dir.exists() {
+            return Err(SceneError::Exists {
+                path: dir.to_path_buf(),
+            });
+        }
+        let name = dir
+            .file_name()
+            .ok_or_else(|| invalid(dir, "a scene folder needs a name"))?
+            .to_string_lossy()
+            .into_owned();
+        let parent = match dir.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
+        if tmp.exists() {
+            fs::remove_dir_all(&tmp).map_err(|e| io_error(&tmp, e))?;
+        }
+        let result = self
+            .write_contents(&tmp)
+            .and_then(|()| fs::rename(&tmp, dir).map_err(|e| io_error(dir, e)));
+        if result.is_err() {
+            // Best effort: never leave a partial scene behind, even a hidden one.
+            let _ = fs::remove_dir_all(&tmp);
+        }
+        result
+    }
+
+    fn write_contents(&self, root: &Path) -> Result<(), SceneError> {
+        let mkdir = |p: &Path| fs::create_dir_all(p).map_err(|e| io_error(p, e));
+        mkdir(root)?;
+        let json = |path: &Path, bytes: serde_json::Result<Vec<u8>>| {
+            let bytes = bytes.map_err(|source| SceneError::Json {
+                path: path.to_path_buf(),
+                source,
+            })?;
+            write_atomic(path, &bytes).map_err(SceneError::from)
+        };
+        let camera_path = root.join(CAMERA_FILE);
+        json(&camera_path, serde_json::to_vec_pretty(&self.camera))?;
+        let actions_path = root.join(ACTIONS_FILE);
+        json(&actions_path, serde_json::to_vec_pretty(&self.actions))?;
+
+        let rgb_dir = root.join(RGB_DIR);
+        mkdir(&rgb_dir)?;
+        for (t, img) in self.rgb.iter().enumerate() {
+            write_rgb8(&rgb_dir.join(frame_file_name(t, "png")), img)?;
+        }
+        let depth_dir = root.join(DEPTH_DIR);
+        mkdir(&depth_dir)?;
+        for (t, img) in self.depth.iter().enumerate() {
+            write_gray16(&depth_dir.join(frame_file_name(t, "png")), img)?;
+        }
+        if let Some(labels) = &self.labels {
+            let label_dir = root.join(LABEL_DIR);
+            mkdir(&label_dir)?;
+            for (t, img) in labels.iter().enumerate() {
+                write_gray16(&label_dir.join(frame_file_name(t, "png")), img)?;
+            }
+        }
+        if let Some(flow) = &self.flow {
+            let flow_dir = root.join(FLOW_DIR);
+            mkdir(&flow_dir)?;
+            for (t, img) in flow.iter().enumerate() {
+                write_flo(&flow_dir.join(frame_file_name(t, "flo")), img)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The scene folders of a dataset: sub-folders whose name starts with `scene_`, sorted by
+/// name (hidden, half-written folders start with `.` and are skipped).
+///
+/// # Errors
+/// [`SceneError::Missing`] or [`SceneError::Io`] naming `dataset`.
+pub fn list_scenes(dataset: &Path) -> Result<Vec<PathBuf>, SceneError> {
+    let mut scenes = Vec::new();
+    for entry in fs::read_dir(dataset).map_err(|e| io_error(dataset, e))? {
+        let entry = entry.map_err(|e| io_error(dataset, e))?;
+        let is_scene = entry
+            .file_name()
+            .to_str()
+            .is_some_and(|n| n.starts_with("scene_"));
+        if is_scene && entry.path().is_dir() {
+            scenes.push(entry.path());
+        }
+    }
+    scenes.sort();
+    Ok(scenes)
+}

@@ -120,17 +120,6 @@ impl ClassicalSegmenter {
         for (a, q) in s.px_area_m2.iter_mut().zip(&s.pts) {
             *a = q[2] * q[2] * px_per_m2;
         }
-        geometry::creases(w, h, frame.rgb(), &s.pts, &s.nrm, p, &mut s.crease);
-        geometry::drop_small_regions(
-            w,
-            h,
-            &s.px_area_m2,
-            p.crease_min_area_m2,
-            &mut s.crease,
-            &mut s.queue,
-            &mut s.seen,
-        );
-
         let mut heat = vec![0u8; n];
         for ((&q, object), heat) in s.pts.iter().zip(&mut s.object).zip(&mut heat) {
             *object = false;
@@ -145,6 +134,25 @@ impl ClassicalSegmenter {
                 *object = table.hull.contains(q, p.hull_margin_m);
             }
         }
+
+        let crease_input = geometry::CreaseInput {
+            w,
+            h,
+            rgb: frame.rgb(),
+            pts: &s.pts,
+            nrm: &s.nrm,
+            object: &s.object,
+        };
+        geometry::creases(&crease_input, p, &mut s.crease);
+        geometry::drop_small_regions(
+            w,
+            h,
+            &s.px_area_m2,
+            p.crease_min_area_m2,
+            &mut s.crease,
+            &mut s.queue,
+            &mut s.seen,
+        );
 
         let mut labels = vec![0u16; n];
         let segments = grow_segments(
@@ -183,7 +191,6 @@ impl ClassicalSegmenter {
                 labels: &labels,
                 segments,
                 inv_focal: 1.0 / (intrinsics.fx * intrinsics.fy).sqrt(),
-                clearance_px: p.smooth_radius_px + p.normal_radius_px + p.crease_radius_px,
             },
             p,
             &mut s.heat,
@@ -210,5 +217,71 @@ impl StaticSegmenter for ClassicalSegmenter {
     ) -> Result<Segmentation, SegmentError> {
         self.segment_detailed(frame, intrinsics)
             .map(|o| o.segmentation)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::segment::synthetic::SyntheticTabletop;
+
+    #[test]
+    fn same_frame_and_seed_give_the_same_output() {
+        let t = SyntheticTabletop::boxes(320, 240, 5).unwrap();
+        let frame = RgbdFrame::new(320, 240, &t.rgb, &t.depth_m).unwrap();
+        let mut a = ClassicalSegmenter::new(SegmenterParams::default()).unwrap();
+        let first = a.segment(&frame, &t.intrinsics).unwrap();
+        let again = a.segment(&frame, &t.intrinsics).unwrap();
+        let mut b = ClassicalSegmenter::new(SegmenterParams::default()).unwrap();
+        assert_eq!(first, again);
+        assert_eq!(first, b.segment(&frame, &t.intrinsics).unwrap());
+        assert!(first.segment_count() >= 3);
+    }
+
+    #[test]
+    fn bad_input_is_an_error_not_a_panic() {
+        let t = SyntheticTabletop::boxes(64, 48, 5).unwrap();
+        assert!(matches!(
+            RgbdFrame::new(64, 48, &t.rgb[1..], &t.depth_m),
+            Err(SegmentError::SizeMismatch { what: "rgb", .. })
+        ));
+        assert!(matches!(
+            RgbdFrame::new(0, 48, &[], &[]),
+            Err(SegmentError::Empty { .. })
+        ));
+        assert!(matches!(
+            RgbdFrame::new(1 << 16, 1 << 16, &[], &[]),
+            Err(SegmentError::TooLarge { .. })
+        ));
+        let mut seg = ClassicalSegmenter::new(SegmenterParams::default()).unwrap();
+        let frame = RgbdFrame::new(64, 48, &t.rgb, &t.depth_m).unwrap();
+        let mut k = t.intrinsics;
+        k.fx = f32::NAN;
+        assert!(matches!(
+            seg.segment(&frame, &k),
+            Err(SegmentError::Intrinsics(_))
+        ));
+        // No depth at all, or depth that is all NaN / negative: no table.
+        for fill in [0.0, f32::NAN, -1.0, f32::INFINITY] {
+            let depth = vec![fill; 64 * 48];
+            let frame = RgbdFrame::new(64, 48, &t.rgb, &depth).unwrap();
+            assert!(matches!(
+                seg.segment(&frame, &t.intrinsics),
+                Err(SegmentError::NoTablePlane { .. })
+            ));
+        }
+        // Tiny frames segment without panicking.
+        for (w, h) in [(1, 1), (3, 2), (1, 40), (1, 200_000)] {
+            let t = SyntheticTabletop::boxes(w, h, 5).unwrap();
+            let frame = RgbdFrame::new(w, h, &t.rgb, &t.depth_m).unwrap();
+            let _ = seg.segment(&frame, &t.intrinsics);
+        }
+        assert!(matches!(
+            ClassicalSegmenter::new(SegmenterParams {
+                min_height_m: 1.0,
+                ..SegmenterParams::default()
+            }),
+            Err(SegmentError::BadParams { .. })
+        ));
     }
 }

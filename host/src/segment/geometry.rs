@@ -239,29 +239,44 @@ pub(super) fn normals(w: usize, h: usize, pts: &[P3], params: &SegmenterParams, 
     }
 }
 
-/// Concave-crease flags ([`CREASE_SOFT`], [`CREASE_BLOCK`]) per pixel.
+/// Inputs of [`creases`]: `width·height` buffers.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct CreaseInput<'a> {
+    pub(super) w: usize,
+    pub(super) h: usize,
+    pub(super) rgb: &'a [[u8; 3]],
+    pub(super) pts: &'a [P3],
+    pub(super) nrm: &'a [P3],
+    pub(super) object: &'a [bool],
+}
+
+/// Concave-crease flags ([`CREASE_SOFT`], [`CREASE_BLOCK`]) per object pixel.
 ///
-/// At pixel `p`, for the pixel pairs `a = p − d`, `b = p + d` with `d = (r, 0)` and
-/// `(0, r)` (`r = crease_radius_px`), both on `p`'s surface and with normals: the bend is
+/// At object pixel `p`, for the pixel pairs `a = p − d`, `b = p + d` with `d = (r, 0)` and
+/// `(0, r)` (`r = crease_radius_px`), both on `p`'s surface and with normals, and with the
+/// whole support of the measurement on objects (the object pixels `p ± d·R/r`,
+/// `R = r + normal_radius_px + smooth_radius_px`, so the corner where an object stands on
+/// the table, whose smoothed normals see the table, is no crease): the bend is
 /// `θ = acos(n_a · n_b)`; it is concave when `(n_a − n_b) · (p_a − p_b) < 0` (the surfaces
 /// face each other, as where two objects meet, rather than away from each other, as at a
 /// box's own edge). A concave bend with `θ > crease_soft_deg` is soft; it also blocks when
 /// `θ > crease_block_deg`, or when the colours of `a` and `b` differ by more than
 /// `crease_colour_diff`.
-pub(super) fn creases(
-    w: usize,
-    h: usize,
-    rgb: &[[u8; 3]],
-    pts: &[P3],
-    nrm: &[P3],
-    params: &SegmenterParams,
-    out: &mut [u8],
-) {
+pub(super) fn creases(inp: &CreaseInput<'_>, params: &SegmenterParams, out: &mut [u8]) {
+    let CreaseInput {
+        w,
+        h,
+        rgb,
+        pts,
+        nrm,
+        object,
+    } = *inp;
     let r = params.crease_radius_px;
+    let reach = r + params.normal_radius_px + params.smooth_radius_px;
     let cos_soft = params.crease_soft_deg.to_radians().cos();
     let cos_block = params.crease_block_deg.to_radians().cos();
     out.fill(0);
-    if w <= 2 * r && h <= 2 * r {
+    if w <= 2 * reach && h <= 2 * reach {
         return;
     }
     let judge = |c: P3, a: usize, b: usize| -> u8 {
@@ -290,15 +305,16 @@ pub(super) fn creases(
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
-            let c = pts[i];
-            if c[2] <= 0.0 {
+            if !object[i] {
                 continue;
             }
+            let c = pts[i];
             let mut f = 0;
-            if x >= r && x + r < w {
+            if x >= reach && x + reach < w && object[i - reach] && object[i + reach] {
                 f |= judge(c, i - r, i + r);
             }
-            if y >= r && y + r < h {
+            let (up, down) = (i.wrapping_sub(reach * w), i + reach * w);
+            if y >= reach && y + reach < h && object[up] && object[down] {
                 f |= judge(c, i - r * w, i + r * w);
             }
             out[i] = f;

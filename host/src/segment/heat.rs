@@ -8,9 +8,6 @@
 //!      meet inside one segment;
 //!    - segment pixels on a step: a neighbour they did not join in region growing (a depth
 //!      step or sharp bend; inside one segment it means the segment went around it);
-//!    - (creases and steps count only at least `smooth_radius_px + normal_radius_px +
-//!      crease_radius_px` pixels from the background `B`: nearer, the filters see the
-//!      concave corner where the object stands on the table, which is no contact);
 //!    - segment pixels of a filled hole in depth;
 //!    - contacts: a segment pixel from which, along +x, −x, +y or −y, the first pixel of
 //!      another label is within `contact_gap_m` (and at least the next pixel) with depth
@@ -63,8 +60,6 @@ pub(super) struct HeatInput<'a> {
     pub(super) segments: usize,
     /// `1 / sqrt(fx·fy)`: metres per pixel per metre of depth.
     pub(super) inv_focal: f32,
-    /// Creases and steps closer than this to the background are the object's own base.
-    pub(super) clearance_px: usize,
 }
 
 /// Writes the heat of segment and contact-gap pixels into `heat` (module docs); other
@@ -78,7 +73,6 @@ pub(super) fn heatmap(
     let (w, h) = (inp.w, inp.h);
     let n = w * h;
     let labels = inp.labels;
-    let clearance_px = inp.clearance_px;
 
     // Mean depth per segment, for pixels without a reading.
     s.mean_z.clear();
@@ -142,6 +136,15 @@ pub(super) fn heatmap(
         }
     }
 
+    // 1b. Creases, steps and holes.
+    for (i, mark) in s.mark.iter_mut().enumerate() {
+        if labels[i] != 0
+            && (inp.crease[i] & CREASE_SOFT != 0 || inp.step[i] != 0 || inp.hole[i] == HOLE)
+        {
+            *mark |= SOURCE;
+        }
+    }
+
     // 2. Distance to the background.
     s.d_source.resize(n, 0.0);
     s.d_background.resize(n, 0.0);
@@ -153,18 +156,6 @@ pub(super) fn heatmap(
         &mut s.edt,
         &mut s.d_background,
     );
-
-    // 1b. Creases, steps and holes.
-    let clearance_px2 = (clearance_px * clearance_px) as f32;
-    for (i, mark) in s.mark.iter_mut().enumerate() {
-        if labels[i] == 0 {
-            continue;
-        }
-        let bend = inp.crease[i] & CREASE_SOFT != 0 || inp.step[i] != 0;
-        if inp.hole[i] == HOLE || bend && s.d_background[i] >= clearance_px2 {
-            *mark |= SOURCE;
-        }
-    }
 
     // 3. Heat.
     let mark = &s.mark;

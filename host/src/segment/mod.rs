@@ -53,6 +53,14 @@ pub enum SegmentError {
         /// Height, pixels.
         height: usize,
     },
+    /// More pixels than 32-bit pixel indices can address.
+    #[error("the frame is too large ({width}x{height}): at most 2^32 - 1 pixels")]
+    TooLarge {
+        /// Width, pixels.
+        width: usize,
+        /// Height, pixels.
+        height: usize,
+    },
     /// A buffer does not hold `width·height` pixels.
     #[error("{what} has {got} pixels, a {width}x{height} frame needs {needed}")]
     SizeMismatch {
@@ -114,16 +122,21 @@ impl<'a> RgbdFrame<'a> {
     /// optical axis in metres (`<= 0` or not finite: no reading), both row-major.
     ///
     /// # Errors
-    /// [`SegmentError::Empty`] for a zero size, [`SegmentError::SizeMismatch`] if a buffer
-    /// does not hold `width·height` pixels.
+    /// [`SegmentError::Empty`] for a zero size, [`SegmentError::TooLarge`] beyond
+    /// `u32::MAX` pixels, [`SegmentError::SizeMismatch`] if a buffer does not hold
+    /// `width·height` pixels.
     pub fn new(
         width: usize,
         height: usize,
         rgb: &'a [[u8; 3]],
         depth_m: &'a [f32],
     ) -> Result<Self, SegmentError> {
-        let Some(needed) = width.checked_mul(height).filter(|&n| n > 0) else {
+        let needed = width.checked_mul(height);
+        if needed == Some(0) {
             return Err(SegmentError::Empty { width, height });
+        }
+        let Some(needed) = needed.filter(|&n| u32::try_from(n).is_ok_and(|n| n < u32::MAX)) else {
+            return Err(SegmentError::TooLarge { width, height });
         };
         for (what, got) in [("rgb", rgb.len()), ("depth", depth_m.len())] {
             if got != needed {

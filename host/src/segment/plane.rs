@@ -160,7 +160,10 @@ pub(super) fn fit_table(
     s: &mut PlaneScratch,
 ) -> Result<TableFit, SegmentError> {
     let step = ((w * h / TARGET_CANDIDATES) as f64).sqrt().floor().max(1.0) as usize;
-    let (gw, gh) = ((w - step / 2).div_ceil(step), (h - step / 2).div_ceil(step));
+    let (gw, gh) = (
+        w.saturating_sub(step / 2).div_ceil(step),
+        h.saturating_sub(step / 2).div_ceil(step),
+    );
     let grid_pixel = |g: usize| (step / 2 + (g / gw) * step) * w + step / 2 + (g % gw) * step;
     s.cand.clear();
     s.cand.extend(

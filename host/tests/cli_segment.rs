@@ -19,16 +19,16 @@ impl Scene {
     fn new(name: &str) -> Self {
         let dir = std::env::temp_dir().join(format!("riseg-cli-{name}-{}", std::process::id()));
         let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).unwrap();
-        let t = SyntheticTabletop::boxes(320, 240, 3).unwrap();
+        fs::create_dir_all(&dir).expect("test setup");
+        let t = SyntheticTabletop::boxes(320, 240, 3).expect("test setup");
         let k = t.intrinsics;
-        files::write_rgb8(&dir.join("rgb.png"), 320, 240, &t.rgb).unwrap();
+        files::write_rgb8(&dir.join("rgb.png"), 320, 240, &t.rgb).expect("test setup");
         let mm: Vec<u16> = t
             .depth_m
             .iter()
             .map(|z| (z * 1000.0).round() as u16)
             .collect();
-        files::write_gray16(&dir.join("depth.png"), 320, 240, &mm).unwrap();
+        files::write_gray16(&dir.join("depth.png"), 320, 240, &mm).expect("test setup");
         fs::write(
             dir.join("scene_camera.json"),
             format!(
@@ -37,7 +37,7 @@ impl Scene {
                 k.fx, k.fy, k.cx, k.cy
             ),
         )
-        .unwrap();
+        .expect("test setup");
         Self { dir }
     }
 
@@ -63,7 +63,7 @@ impl Scene {
             .arg("--viz")
             .arg(self.path("viz.png"))
             .output()
-            .unwrap()
+            .expect("test setup")
     }
 
     /// Asserts a failure whose message names `file`, and that no output was written.
@@ -88,8 +88,8 @@ impl Drop for Scene {
 }
 
 fn assert_no_temporaries(dir: &Path) {
-    for entry in fs::read_dir(dir).unwrap() {
-        let name = entry.unwrap().file_name();
+    for entry in fs::read_dir(dir).expect("test setup") {
+        let name = entry.expect("test setup").file_name();
         assert!(
             !name.to_string_lossy().contains(".tmp"),
             "temporary file {name:?} left"

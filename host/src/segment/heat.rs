@@ -20,10 +20,11 @@
 //!    - else `150 + ⌊105 · min(1, min(d_S − band_m, d_B − rim_m) / certain_ramp_m)⌋`
 //!      (150..=255, certain, growing away from every source and the table).
 //! 4. Contact-gap pixels get 120. Every other pixel keeps the background value the caller
-//!    wrote: `⌊100 · clamp(h / h_min(z), 0, 1)⌋` for a point at height `h` over the table
-//!    inside the table's hull (`h_min` from [`SegmenterParams::min_height_at_m`]), so a
-//!    table is 0 and the value rises towards 100 just under the object threshold; 0
-//!    elsewhere (no depth, outside the table, too high).
+//!    wrote: `⌊100 · max(0, h / h_min(z))⌋` for a point at height `h` below the object
+//!    threshold `h_min` ([`SegmenterParams::min_height_at_m`]) over the table, so the table
+//!    is 0 and the value rises towards 100 just under the threshold; 0 for pixels without
+//!    depth and for points at or above `h_min` that are in no segment (outside the table's
+//!    hull, too high, or dropped as too small).
 
 use super::{
     HEAT_CERTAIN, HEAT_UNCERTAIN, SegmenterParams,

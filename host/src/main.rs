@@ -29,7 +29,7 @@ enum Command {
     /// Needs the simulator, built-in segmenter and flow, which later releases add; until
     /// then this command says so and exits with an error.
     Demo,
-    /// Segment one RGB-D frame with the built-in classical segmenter (no model weights).
+    /// Segment one RGB-D frame with the built-in classical segmenter (no model weights)
     ///
     /// Fits the table plane, keeps what stands on it, grows regions over depth and normal
     /// continuity, and writes 16-bit instance labels (0 = background, 1..n = segments by

@@ -140,8 +140,21 @@ pub fn read_png(path: &Path) -> Result<DynamicImage, FileError> {
         })
 }
 
+/// "8-bit RGB", "16-bit greyscale", ... for error messages.
 fn describe(img: &DynamicImage) -> String {
-    format!("{:?}", img.color())
+    use image::ColorType as C;
+    let c = img.color();
+    let kind = match c {
+        C::L8 | C::L16 => "greyscale",
+        C::La8 | C::La16 => "greyscale with alpha",
+        C::Rgb8 | C::Rgb16 | C::Rgb32F => "RGB",
+        C::Rgba8 | C::Rgba16 | C::Rgba32F => "RGBA",
+        _ => return format!("{c:?}"),
+    };
+    format!(
+        "{}-bit {kind}",
+        c.bits_per_pixel() / u16::from(c.channel_count())
+    )
 }
 
 /// Reads an 8-bit RGB PNG (an alpha channel, if any, is ignored).

@@ -9,9 +9,11 @@
 //!    - segment pixels on a step: a neighbour they did not join in region growing (a depth
 //!      step or sharp bend; inside one segment it means the segment went around it);
 //!    - segment pixels of a filled hole in depth;
-//!    - contacts: a segment pixel from which, along +x, −x, +y or −y, the first pixel of
-//!      another label is within `contact_gap_m` (and at least the next pixel) with depth
-//!      within `contact_depth_m`; the unlabelled pixels of the gap between them are
+//!    - contacts: a segment pixel from which, along +x, −x, +y or −y, the first labelled
+//!      pixel has another label and a depth within `contact_depth_m`, and the unlabelled
+//!      pixels in between with a depth reading span at most `contact_gap_m` (pixels
+//!      without depth, such as the shadow a structured-light camera casts beside an
+//!      object, do not count, up to 32 pixels in all); the unlabelled pixels in between are
 //!      sources too.
 //! 2. **Background** `B`: unlabelled pixels that are not contact-gap pixels.
 //! 3. With `d_S`, `d_B` the distances (metres) to `S` and `B`, a segment pixel gets
@@ -35,8 +37,9 @@ use super::{
 
 const SOURCE: u8 = 1;
 const GAP: u8 = 2;
-/// Largest contact-gap scan, pixels (bounds the work on very near objects).
-const MAX_GAP_PX: usize = 32;
+/// Longest contact scan, pixels (bounds the work, and the width of a shadow in depth that
+/// may separate two touching objects).
+const MAX_SCAN_PX: usize = 32;
 
 /// Scratch of [`heatmap`], reused across frames.
 #[derive(Debug, Default)]
@@ -107,13 +110,15 @@ pub(super) fn heatmap(
         let z = depth(i);
         let m_per_px = z * inp.inv_focal;
         let gap_px = if m_per_px > 0.0 {
-            1 + ((params.contact_gap_m / m_per_px) as usize).min(MAX_GAP_PX)
+            ((params.contact_gap_m / m_per_px) as usize).min(MAX_SCAN_PX)
         } else {
-            1
+            0
         };
         let (x, y) = ((i % w) as isize, (i / w) as isize);
         for (dx, dy) in [(1isize, 0isize), (-1, 0), (0, 1), (0, -1)] {
-            for t in 1..=gap_px as isize {
+            // Unlabelled pixels with depth count against the gap; holes do not.
+            let mut open = gap_px;
+            for t in 1..=MAX_SCAN_PX as isize {
                 let (qx, qy) = (x + dx * t, y + dy * t);
                 if qx < 0 || qy < 0 || qx >= w as isize || qy >= h as isize {
                     break;
@@ -124,6 +129,12 @@ pub(super) fn heatmap(
                     break;
                 }
                 if b == 0 {
+                    if inp.pts[q][2] > 0.0 {
+                        if open == 0 {
+                            break;
+                        }
+                        open -= 1;
+                    }
                     continue;
                 }
                 if (depth(q) - z).abs() < params.contact_depth_m {

@@ -19,6 +19,7 @@ pub mod metrics;
 pub mod preview;
 pub mod robot;
 pub mod scene;
+pub mod segment;
 pub mod sim;
 pub mod synthetic;
 pub mod workspace;

@@ -1,0 +1,287 @@
+//! The built-in classical segmenter: no model weights, RGB-D geometry only (colour helps
+//! at ambiguous creases).
+//!
+//! Pipeline, each stage documented in its module:
+//! 1. back-project depth, smooth the points edge-aware, normals from cross products
+//!    ([`geometry`](super::geometry));
+//! 2. fit the table plane by seeded RANSAC and least squares, and the hull of its inliers
+//!    ([`plane`](super::plane));
+//! 3. object pixels: height above the table in `[h_min(z), max_height_m]`, footprint at
+//!    least `hull_margin_m` inside the hull;
+//! 4. concave creases (dropping specks smaller than `crease_min_area_m2`), region growing, small-segment cleanup, hole filling
+//!    ([`grow`](super::grow));
+//! 5. the heatmap ([`heat`](super::heat)).
+//!
+//! Like the learned segmenters RISeg corrects, it merges touching objects whose contact
+//! shows no depth step, concave crease or crease with a colour change (two boxes of equal
+//! height pushed flush together are one segment); the heatmap marks the creases and
+//! contacts it does see as uncertain.
+//!
+//! All buffers live in the segmenter and are reused, so segmenting a stream of frames of
+//! one size allocates only the output.
+
+use riseg_core::Intrinsics;
+
+use super::{
+    RgbdFrame, SegmentError, Segmentation, SegmenterParams, StaticSegmenter,
+    geometry::{self, P3},
+    grow::{GrowInput, GrowScratch, grow_segments},
+    heat::{HeatInput, HeatScratch, heatmap},
+    plane::{PlaneScratch, TablePlane, fit_table},
+};
+
+/// Heat of background points just under the object threshold (see [`heat`](super::heat)).
+const TABLE_HEAT_MAX: f32 = 100.0;
+
+/// The result of [`ClassicalSegmenter::segment_detailed`]: the segmentation and the table
+/// it found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClassicalOutput {
+    /// Labels and heatmap.
+    pub segmentation: Segmentation,
+    /// The fitted table plane, camera frame.
+    pub plane: TablePlane,
+}
+
+#[derive(Debug, Default)]
+struct Scratch {
+    raw: Vec<P3>,
+    smooth: geometry::SmoothScratch,
+    pts: Vec<P3>,
+    nrm: Vec<P3>,
+    crease: Vec<u8>,
+    object: Vec<bool>,
+    px_area_m2: Vec<f32>,
+    hole: Vec<u8>,
+    step: Vec<u8>,
+    queue: Vec<u32>,
+    seen: Vec<bool>,
+    plane: PlaneScratch,
+    grow: GrowScratch,
+    heat: HeatScratch,
+}
+
+/// Table-plane fit + region growing over depth and normal continuity (module docs).
+#[derive(Debug)]
+pub struct ClassicalSegmenter {
+    params: SegmenterParams,
+    scratch: Scratch,
+}
+
+impl ClassicalSegmenter {
+    /// A segmenter with checked `params`.
+    ///
+    /// # Errors
+    /// [`SegmentError::BadParams`] if a field is out of range.
+    pub fn new(params: SegmenterParams) -> Result<Self, SegmentError> {
+        params.check()?;
+        Ok(Self {
+            params,
+            scratch: Scratch::default(),
+        })
+    }
+
+    /// The parameters in use.
+    #[must_use]
+    pub fn params(&self) -> &SegmenterParams {
+        &self.params
+    }
+
+    /// Segments `frame` and also returns the table plane.
+    ///
+    /// # Errors
+    /// [`SegmentError::Intrinsics`] for bad intrinsics, [`SegmentError::NoTablePlane`] when
+    /// no plane holds `min_table_share` of the depth samples (no table in view, or almost
+    /// no depth), [`SegmentError::TooManySegments`] beyond 65 535 segments.
+    pub fn segment_detailed(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        intrinsics: &Intrinsics,
+    ) -> Result<ClassicalOutput, SegmentError> {
+        intrinsics.check()?;
+        let (w, h) = (frame.width(), frame.height());
+        let n = w * h;
+        let p = &self.params;
+        let s = &mut self.scratch;
+        s.raw.resize(n, [0.0; 3]);
+        s.pts.resize(n, [0.0; 3]);
+        s.nrm.resize(n, [0.0; 3]);
+        s.crease.resize(n, 0);
+        s.object.resize(n, false);
+        s.px_area_m2.resize(n, 0.0);
+        s.hole.resize(n, 0);
+        s.step.resize(n, 0);
+
+        geometry::back_project(frame, intrinsics, &mut s.raw);
+        geometry::smooth_points(w, h, &s.raw, p, &mut s.smooth, &mut s.pts);
+        geometry::normals(w, h, &s.pts, p, &mut s.nrm);
+        let table = fit_table(w, h, &s.pts, &s.nrm, p, &mut s.plane)?;
+        let px_per_m2 = 1.0 / (intrinsics.fx * intrinsics.fy);
+        for (a, q) in s.px_area_m2.iter_mut().zip(&s.pts) {
+            *a = q[2] * q[2] * px_per_m2;
+        }
+        let mut heat = vec![0u8; n];
+        for ((&q, object), heat) in s.pts.iter().zip(&mut s.object).zip(&mut heat) {
+            *object = false;
+            if q[2] <= 0.0 {
+                continue;
+            }
+            let height = table.height_of(q);
+            let h_min = p.min_height_at_m(q[2]);
+            if height < h_min {
+                *heat = (TABLE_HEAT_MAX * (height / h_min).max(0.0)) as u8;
+            } else if height <= p.max_height_m {
+                *object = table.hull.contains(q, p.hull_margin_m);
+            }
+        }
+
+        let crease_input = geometry::CreaseInput {
+            w,
+            h,
+            rgb: frame.rgb(),
+            pts: &s.pts,
+            nrm: &s.nrm,
+            object: &s.object,
+        };
+        geometry::creases(&crease_input, p, &mut s.crease);
+        geometry::drop_small_regions(
+            w,
+            h,
+            &s.px_area_m2,
+            p.crease_min_area_m2,
+            &mut s.crease,
+            &mut s.queue,
+            &mut s.seen,
+        );
+
+        let mut labels = vec![0u16; n];
+        let segments = grow_segments(
+            &GrowInput {
+                w,
+                h,
+                pts: &s.pts,
+                nrm: &s.nrm,
+                crease: &s.crease,
+                object: &s.object,
+                px_area_m2: &s.px_area_m2,
+            },
+            p,
+            &mut s.grow,
+            &mut labels,
+            &mut s.hole,
+            &mut s.step,
+        )?;
+        geometry::drop_small_regions(
+            w,
+            h,
+            &s.px_area_m2,
+            p.crease_min_area_m2,
+            &mut s.step,
+            &mut s.queue,
+            &mut s.seen,
+        );
+        heatmap(
+            &HeatInput {
+                w,
+                h,
+                pts: &s.pts,
+                crease: &s.crease,
+                hole: &s.hole,
+                step: &s.step,
+                labels: &labels,
+                segments,
+                inv_focal: 1.0 / (intrinsics.fx * intrinsics.fy).sqrt(),
+            },
+            p,
+            &mut s.heat,
+            &mut heat,
+        );
+        Ok(ClassicalOutput {
+            segmentation: Segmentation {
+                width: w,
+                height: h,
+                labels,
+                heatmap: heat,
+            },
+            plane: table.plane,
+        })
+    }
+}
+
+impl StaticSegmenter for ClassicalSegmenter {
+    /// See [`ClassicalSegmenter::segment_detailed`] for the errors.
+    fn segment(
+        &mut self,
+        frame: &RgbdFrame<'_>,
+        intrinsics: &Intrinsics,
+    ) -> Result<Segmentation, SegmentError> {
+        self.segment_detailed(frame, intrinsics)
+            .map(|o| o.segmentation)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::segment::synthetic::SyntheticTabletop;
+
+    #[test]
+    fn same_frame_and_seed_give_the_same_output() {
+        let t = SyntheticTabletop::boxes(320, 240, 5).unwrap();
+        let frame = RgbdFrame::new(320, 240, &t.rgb, &t.depth_m).unwrap();
+        let mut a = ClassicalSegmenter::new(SegmenterParams::default()).unwrap();
+        let first = a.segment(&frame, &t.intrinsics).unwrap();
+        let again = a.segment(&frame, &t.intrinsics).unwrap();
+        let mut b = ClassicalSegmenter::new(SegmenterParams::default()).unwrap();
+        assert_eq!(first, again);
+        assert_eq!(first, b.segment(&frame, &t.intrinsics).unwrap());
+        assert!(first.segment_count() >= 3);
+    }
+
+    #[test]
+    fn bad_input_is_an_error_not_a_panic() {
+        let t = SyntheticTabletop::boxes(64, 48, 5).unwrap();
+        assert!(matches!(
+            RgbdFrame::new(64, 48, &t.rgb[1..], &t.depth_m),
+            Err(SegmentError::SizeMismatch { what: "rgb", .. })
+        ));
+        assert!(matches!(
+            RgbdFrame::new(0, 48, &[], &[]),
+            Err(SegmentError::Empty { .. })
+        ));
+        assert!(matches!(
+            RgbdFrame::new(1 << 16, 1 << 16, &[], &[]),
+            Err(SegmentError::TooLarge { .. })
+        ));
+        let mut seg = ClassicalSegmenter::new(SegmenterParams::default()).unwrap();
+        let frame = RgbdFrame::new(64, 48, &t.rgb, &t.depth_m).unwrap();
+        let mut k = t.intrinsics;
+        k.fx = f32::NAN;
+        assert!(matches!(
+            seg.segment(&frame, &k),
+            Err(SegmentError::Intrinsics(_))
+        ));
+        // No depth at all, or depth that is all NaN / negative: no table.
+        for fill in [0.0, f32::NAN, -1.0, f32::INFINITY] {
+            let depth = vec![fill; 64 * 48];
+            let frame = RgbdFrame::new(64, 48, &t.rgb, &depth).unwrap();
+            assert!(matches!(
+                seg.segment(&frame, &t.intrinsics),
+                Err(SegmentError::NoTablePlane { .. })
+            ));
+        }
+        // Tiny frames segment without panicking.
+        for (w, h) in [(1, 1), (3, 2), (1, 40), (1, 200_000)] {
+            let t = SyntheticTabletop::boxes(w, h, 5).unwrap();
+            let frame = RgbdFrame::new(w, h, &t.rgb, &t.depth_m).unwrap();
+            let _ = seg.segment(&frame, &t.intrinsics);
+        }
+        assert!(matches!(
+            ClassicalSegmenter::new(SegmenterParams {
+                min_height_m: 1.0,
+                ..SegmenterParams::default()
+            }),
+            Err(SegmentError::BadParams { .. })
+        ));
+    }
+}

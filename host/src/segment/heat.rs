@@ -1,0 +1,197 @@
+//! The FindAction heatmap, calibrated to the paper's thresholds `l_u = 150`, `l_l = 120`.
+//!
+//! Rule (distances are Euclidean in the image, converted to metres at the pixel's depth by
+//! `z / sqrt(fx·fy)`; a filled hole uses its segment's mean depth):
+//!
+//! 1. **Uncertainty sources** `S`:
+//!    - segment pixels on a soft (or blocking) concave crease: a bend where two objects may
+//!      meet inside one segment;
+//!    - segment pixels on a step: a neighbour they did not join in region growing (a depth
+//!      step or sharp bend; inside one segment it means the segment went around it);
+//!    - segment pixels of a filled hole in depth;
+//!    - contacts: a segment pixel from which, along +x, −x, +y or −y, the first labelled
+//!      pixel has another label and a depth within `contact_depth_m`, and the unlabelled
+//!      pixels in between with a depth reading span at most `contact_gap_m` (pixels
+//!      without depth, such as the shadow a structured-light camera casts beside an
+//!      object, do not count, up to 32 pixels in all); the unlabelled pixels in between are
+//!      sources too.
+//! 2. **Background** `B`: unlabelled pixels that are not contact-gap pixels.
+//! 3. With `d_S`, `d_B` the distances (metres) to `S` and `B`, a segment pixel gets
+//!    - `120 + ⌊30 · d_S / band_m⌋` (120..=149) if `d_S < band_m` (uncertain band);
+//!    - else `rim_heat` (< 120) if `d_B < rim_m` (object rim next to the table);
+//!    - else `150 + ⌊105 · min(1, min(d_S − band_m, d_B − rim_m) / certain_ramp_m)⌋`
+//!      (150..=255, certain, growing away from every source and the table).
+//! 4. Contact-gap pixels get 120. Every other pixel keeps the background value the caller
+//!    wrote: `⌊100 · max(0, h / h_min(z))⌋` for a point at height `h` below the object
+//!    threshold `h_min` ([`SegmenterParams::min_height_at_m`]) over the table, so the table
+//!    is 0 and the value rises towards 100 just under the threshold; 0 for pixels without
+//!    depth and for points at or above `h_min` that are in no segment (outside the table's
+//!    hull, too high, or dropped as too small).
+
+use super::{
+    HEAT_CERTAIN, HEAT_UNCERTAIN, SegmenterParams,
+    edt::{EdtScratch, squared_distance},
+    geometry::{CREASE_SOFT, P3},
+    grow::HOLE,
+};
+
+const SOURCE: u8 = 1;
+const GAP: u8 = 2;
+/// Longest contact scan, pixels (bounds the work, and the width of a shadow in depth that
+/// may separate two touching objects).
+const MAX_SCAN_PX: usize = 32;
+
+/// Scratch of [`heatmap`], reused across frames.
+#[derive(Debug, Default)]
+pub(super) struct HeatScratch {
+    mark: Vec<u8>,
+    d_source: Vec<f32>,
+    d_background: Vec<f32>,
+    mean_z: Vec<(f64, u32)>,
+    edt: EdtScratch,
+}
+
+/// Inputs of [`heatmap`].
+pub(super) struct HeatInput<'a> {
+    pub(super) w: usize,
+    pub(super) h: usize,
+    pub(super) pts: &'a [P3],
+    pub(super) crease: &'a [u8],
+    pub(super) hole: &'a [u8],
+    /// Pixels flagged by region growing as not joining a neighbour (non-zero).
+    pub(super) step: &'a [u8],
+    pub(super) labels: &'a [u16],
+    pub(super) segments: usize,
+    /// `1 / sqrt(fx·fy)`: metres per pixel per metre of depth.
+    pub(super) inv_focal: f32,
+}
+
+/// Writes the heat of segment and contact-gap pixels into `heat` (module docs); other
+/// pixels keep their value.
+pub(super) fn heatmap(
+    inp: &HeatInput<'_>,
+    params: &SegmenterParams,
+    s: &mut HeatScratch,
+    heat: &mut [u8],
+) {
+    let (w, h) = (inp.w, inp.h);
+    let n = w * h;
+    let labels = inp.labels;
+
+    // Mean depth per segment, for pixels without a reading.
+    s.mean_z.clear();
+    s.mean_z.resize(inp.segments + 1, (0.0, 0));
+    for (l, p) in labels.iter().zip(inp.pts) {
+        if *l != 0 && p[2] > 0.0 {
+            let m = &mut s.mean_z[usize::from(*l)];
+            *m = (m.0 + f64::from(p[2]), m.1 + 1);
+        }
+    }
+    let mean_z: &[(f64, u32)] = &s.mean_z;
+    let depth = |i: usize| -> f32 {
+        let z = inp.pts[i][2];
+        if z > 0.0 {
+            return z;
+        }
+        match mean_z.get(usize::from(labels[i])) {
+            Some(&(sum, c)) if c > 0 => (sum / f64::from(c)) as f32,
+            _ => 0.0,
+        }
+    };
+
+    // 1a. Contacts and their gaps.
+    s.mark.clear();
+    s.mark.resize(n, 0);
+    for i in 0..n {
+        let a = labels[i];
+        if a == 0 {
+            continue;
+        }
+        let z = depth(i);
+        let m_per_px = z * inp.inv_focal;
+        let gap_px = if m_per_px > 0.0 {
+            ((params.contact_gap_m / m_per_px) as usize).min(MAX_SCAN_PX)
+        } else {
+            0
+        };
+        let (x, y) = ((i % w) as isize, (i / w) as isize);
+        for (dx, dy) in [(1isize, 0isize), (-1, 0), (0, 1), (0, -1)] {
+            // Unlabelled pixels with depth count against the gap; holes do not.
+            let mut open = gap_px;
+            for t in 1..=MAX_SCAN_PX as isize {
+                let (qx, qy) = (x + dx * t, y + dy * t);
+                if qx < 0 || qy < 0 || qx >= w as isize || qy >= h as isize {
+                    break;
+                }
+                let q = qy as usize * w + qx as usize;
+                let b = labels[q];
+                if b == a {
+                    break;
+                }
+                if b == 0 {
+                    if inp.pts[q][2] > 0.0 {
+                        if open == 0 {
+                            break;
+                        }
+                        open -= 1;
+                    }
+                    continue;
+                }
+                if (depth(q) - z).abs() < params.contact_depth_m {
+                    s.mark[i] |= SOURCE;
+                    for u in 1..t {
+                        s.mark[(y + dy * u) as usize * w + (x + dx * u) as usize] |= GAP;
+                    }
+                }
+                break;
+            }
+        }
+    }
+
+    // 1b. Creases, steps and holes.
+    for (i, mark) in s.mark.iter_mut().enumerate() {
+        if labels[i] != 0
+            && (inp.crease[i] & CREASE_SOFT != 0 || inp.step[i] != 0 || inp.hole[i] == HOLE)
+        {
+            *mark |= SOURCE;
+        }
+    }
+
+    // 2. Distance to the background.
+    s.d_source.resize(n, 0.0);
+    s.d_background.resize(n, 0.0);
+    let mark = &s.mark;
+    squared_distance(
+        w,
+        h,
+        |i| labels[i] == 0 && mark[i] & GAP == 0,
+        &mut s.edt,
+        &mut s.d_background,
+    );
+
+    // 3. Heat.
+    let mark = &s.mark;
+    squared_distance(w, h, |i| mark[i] != 0, &mut s.edt, &mut s.d_source);
+    for (i, (&label, heat)) in labels.iter().zip(heat.iter_mut()).enumerate() {
+        if label == 0 {
+            if s.mark[i] & GAP != 0 {
+                *heat = HEAT_UNCERTAIN;
+            }
+            continue;
+        }
+        let m_per_px = depth(i) * inp.inv_focal;
+        let d_s = s.d_source[i].sqrt() * m_per_px;
+        let d_b = s.d_background[i].sqrt() * m_per_px;
+        *heat = if d_s < params.band_m {
+            let band = f32::from(HEAT_CERTAIN - HEAT_UNCERTAIN);
+            HEAT_UNCERTAIN
+                + ((band * d_s / params.band_m) as u8).min(HEAT_CERTAIN - HEAT_UNCERTAIN - 1)
+        } else if d_b < params.rim_m {
+            params.rim_heat
+        } else {
+            let t = ((d_s - params.band_m).min(d_b - params.rim_m) / params.certain_ramp_m)
+                .clamp(0.0, 1.0);
+            HEAT_CERTAIN + (f32::from(u8::MAX - HEAT_CERTAIN) * t) as u8
+        };
+    }
+}

@@ -1,0 +1,558 @@
+//! The table: a robust plane fit to the back-projected points and the convex hull of its
+//! inliers, in which objects must stand.
+//!
+//! Contract of [`fit_table`]:
+//! 1. Candidates are the pixels of a regular grid (about 20 000 of them) with a depth
+//!    reading and a normal.
+//! 2. RANSAC (seeded [`Pcg32`]): planes through three random candidates, scored by the
+//!    inliers among a fixed random subset of 1 000 candidates. An inlier lies within
+//!    [`SegmenterParams::plane_tolerance_m`] of the plane and its normal within
+//!    `plane_normal_deg` of the plane's. The best plane is refitted by least squares
+//!    (the smallest principal axis of the inliers' covariance), twice.
+//! 3. The dominant plane may be the floor under a small table. So the search repeats
+//!    among candidates more than `table_step_m` above the current plane, allowing only
+//!    planes within 10° of parallel; a plane found there with at least `min_table_share`
+//!    of all candidates becomes the table (the highest large support wins).
+//! 4. The table's normal faces the camera: the camera is at height `offset_m > 0`.
+//! 5. A bend, a quadratic height correction over the plane clamped to ±5 cm, is fitted by
+//!    least squares to the table's points (within 2.5 tolerances of the plane, then twice
+//!    within one tolerance of plane plus bend). Heights of objects are measured from plane
+//!    plus bend: real tables warp and real depth is biased with distance.
+//! 6. The convex hull, in plane coordinates, of the largest 4-connected region of inlier
+//!    candidates on the grid bounds where objects may stand (a second table further away
+//!    does not stretch it over the floor in between).
+
+use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
+use riseg_core::rng::Pcg32;
+
+use super::{
+    SegmentError, SegmenterParams,
+    geometry::{P3, cross, dot},
+};
+
+/// Candidate grid target: enough points for a stable fit, few enough to be fast.
+const TARGET_CANDIDATES: usize = 20_000;
+/// Candidates each hypothesis is scored on.
+const SCORE_SAMPLES: usize = 1_000;
+/// A higher support plane must be within this angle of parallel to the dominant one.
+const PARALLEL_DEG: f32 = 10.0;
+/// Higher support planes tried after the dominant one.
+const MAX_RAISES: usize = 3;
+
+/// A plane `normal · p + offset_m = 0` in the camera frame, `normal` a unit vector facing
+/// the camera, so [`TablePlane::height_m`] is positive above the table (towards the camera).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TablePlane {
+    /// Unit normal, camera frame, pointing from the table towards the camera.
+    pub normal: Vector3<f32>,
+    /// Signed offset, metres: the camera's height above the plane.
+    pub offset_m: f32,
+}
+
+impl TablePlane {
+    /// Signed distance of `p` (camera frame, metres) above the plane, metres.
+    #[must_use]
+    pub fn height_m(&self, p: &Point3<f32>) -> f32 {
+        self.normal.dot(&p.coords) + self.offset_m
+    }
+
+    pub(super) fn height_of(&self, p: P3) -> f32 {
+        self.normal.x * p[0] + self.normal.y * p[1] + self.normal.z * p[2] + self.offset_m
+    }
+
+    fn normal_array(&self) -> P3 {
+        [self.normal.x, self.normal.y, self.normal.z]
+    }
+
+    /// Through three points; `None` if they are (nearly) collinear.
+    fn through(a: P3, b: P3, c: P3) -> Option<Self> {
+        let n = cross(
+            [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
+            [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
+        );
+        let len = dot(n, n).sqrt();
+        if len.is_nan() || len <= 1e-9 {
+            return None;
+        }
+        Self::oriented([n[0] / len, n[1] / len, n[2] / len], a)
+    }
+
+    /// Normal `n` (unit) through `p`, turned to face the camera; `None` if the plane passes
+    /// through the camera.
+    fn oriented(n: P3, p: P3) -> Option<Self> {
+        let d = -dot(n, p);
+        if d.is_nan() || d.abs() <= 1e-6 {
+            return None;
+        }
+        let s = d.signum();
+        Some(Self {
+            normal: Vector3::new(n[0] * s, n[1] * s, n[2] * s),
+            offset_m: d * s,
+        })
+    }
+}
+
+/// Point-in-convex-polygon test with an inward margin, in plane coordinates.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Hull {
+    /// In-plane axes (unit, orthogonal to the plane normal).
+    e1: P3,
+    e2: P3,
+    /// Edges as `(a, b, c)`: `a·u + b·v + c` is the distance inside the edge, metres.
+    edges: Vec<[f32; 3]>,
+}
+
+impl Hull {
+    /// `true` if the footprint of `p` on the plane is at least `margin_m` inside the hull.
+    pub(super) fn contains(&self, p: P3, margin_m: f32) -> bool {
+        if self.edges.len() < 3 {
+            return false;
+        }
+        let (u, v) = (dot(self.e1, p), dot(self.e2, p));
+        self.edges
+            .iter()
+            .all(|e| e[0] * u + e[1] * v + e[2] >= margin_m)
+    }
+}
+
+/// Scratch of [`fit_table`], reused across frames.
+#[derive(Debug, Default)]
+pub(super) struct PlaneScratch {
+    cand: Vec<u32>,
+    allowed: Vec<u32>,
+    score: Vec<u32>,
+    flat: Vec<[f32; 2]>,
+    hull: Vec<[f32; 2]>,
+    grid: Vec<u32>,
+    queue: Vec<u32>,
+}
+
+/// The fitted table: plane, bend and the hull objects must stand in.
+#[derive(Debug, Clone)]
+pub(super) struct TableFit {
+    pub(super) plane: TablePlane,
+    bend: Bend,
+    pub(super) hull: Hull,
+}
+
+impl TableFit {
+    /// Height of `p` above the table surface (plane plus bend), metres.
+    pub(super) fn height_of(&self, p: P3) -> f32 {
+        self.plane.height_of(p) - self.bend.at(p)
+    }
+}
+
+fn is_inlier(plane: &TablePlane, p: P3, n: P3, cos_normal: f32, params: &SegmenterParams) -> bool {
+    plane.height_of(p).abs() <= params.plane_tolerance_m(p[2])
+        && dot(plane.normal_array(), n) >= cos_normal
+}
+
+/// Fits the table (see the module docs).
+///
+/// # Errors
+/// [`SegmentError::NoTablePlane`] if no plane holds `min_table_share` of the candidates.
+pub(super) fn fit_table(
+    w: usize,
+    h: usize,
+    pts: &[P3],
+    nrm: &[P3],
+    params: &SegmenterParams,
+    s: &mut PlaneScratch,
+) -> Result<TableFit, SegmentError> {
+    let step = ((w * h / TARGET_CANDIDATES) as f64).sqrt().floor().max(1.0) as usize;
+    let (gw, gh) = (
+        w.saturating_sub(step / 2).div_ceil(step),
+        h.saturating_sub(step / 2).div_ceil(step),
+    );
+    let grid_pixel = |g: usize| (step / 2 + (g / gw) * step) * w + step / 2 + (g % gw) * step;
+    s.cand.clear();
+    s.cand.extend(
+        (0..gw * gh)
+            .map(grid_pixel)
+            .filter(|&i| pts[i][2] > 0.0 && nrm[i] != [0.0; 3])
+            .map(|i| i as u32),
+    );
+    let needed = ((params.min_table_share * s.cand.len() as f32).ceil() as usize).max(3);
+    let cos_normal = params.plane_normal_deg.to_radians().cos();
+    let mut rng = Pcg32::new(params.seed);
+
+    s.allowed.clone_from(&s.cand);
+    let (mut plane, inliers) = ransac(pts, nrm, None, params, &mut rng, s);
+    if inliers < needed {
+        return Err(SegmentError::NoTablePlane {
+            inliers,
+            candidates: s.cand.len(),
+            needed,
+        });
+    }
+    for _ in 0..MAX_RAISES {
+        let base = plane;
+        s.allowed.clear();
+        s.allowed.extend(
+            s.cand
+                .iter()
+                .copied()
+                .filter(|&i| base.height_of(pts[i as usize]) > params.table_step_m),
+        );
+        if s.allowed.len() < needed {
+            break;
+        }
+        let (higher, n) = ransac(pts, nrm, Some(&base), params, &mut rng, s);
+        if n < needed {
+            break;
+        }
+        plane = higher;
+    }
+
+    // In-plane axes, the bend, then the hull of the largest connected inlier region.
+    let n = plane.normal_array();
+    let seed_axis = if n[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let e1 = normalise(cross(n, seed_axis));
+    let e2 = cross(n, e1);
+    let mut table = TableFit {
+        plane,
+        bend: Bend::flat(e1, e2),
+        hull: Hull {
+            e1,
+            e2,
+            edges: Vec::new(),
+        },
+    };
+    for widen in [2.5, 1.0, 1.0] {
+        let fit = &table;
+        let Some(bend) = Bend::fit(
+            e1,
+            e2,
+            s.cand.iter().filter_map(|&i| {
+                let (p, q) = (pts[i as usize], nrm[i as usize]);
+                let tol = widen * params.plane_tolerance_m(p[2]);
+                (fit.height_of(p).abs() <= tol && dot(n, q) >= cos_normal)
+                    .then(|| (p, plane.height_of(p)))
+            }),
+        ) else {
+            break;
+        };
+        table.bend = bend;
+    }
+
+    s.grid.clear();
+    s.grid.resize(gw * gh, 0);
+    for g in 0..gw * gh {
+        let i = grid_pixel(g);
+        let (p, q) = (pts[i], nrm[i]);
+        if p[2] > 0.0
+            && table.height_of(p).abs() <= params.plane_tolerance_m(p[2])
+            && dot(n, q) >= cos_normal
+        {
+            s.grid[g] = 1;
+        }
+    }
+    let largest = largest_component(gw, gh, &mut s.grid, &mut s.queue);
+    s.flat.clear();
+    for (g, &c) in s.grid.iter().enumerate() {
+        if c == largest {
+            let p = pts[grid_pixel(g)];
+            s.flat.push([dot(e1, p), dot(e2, p)]);
+        }
+    }
+    convex_hull(&mut s.flat, &mut s.hull);
+    table.hull.edges = s
+        .hull
+        .iter()
+        .zip(s.hull.iter().cycle().skip(1))
+        .filter_map(|(a, b)| {
+            let (tx, ty) = (b[0] - a[0], b[1] - a[1]);
+            let len = (tx * tx + ty * ty).sqrt();
+            (len > 1e-9).then(|| {
+                let (nx, ny) = (-ty / len, tx / len);
+                [nx, ny, -(nx * a[0] + ny * a[1])]
+            })
+        })
+        .collect();
+    Ok(table)
+}
+
+/// Labels the 4-connected components of the cells marked `1` in `grid` with ids from 2
+/// on, and returns the id of the largest (0 if there is none).
+fn largest_component(gw: usize, gh: usize, grid: &mut [u32], queue: &mut Vec<u32>) -> u32 {
+    let (mut best, mut best_size, mut next) = (0, 0, 2);
+    for start in 0..gw * gh {
+        if grid[start] != 1 {
+            continue;
+        }
+        queue.clear();
+        queue.push(start as u32);
+        grid[start] = next;
+        let mut head = 0;
+        while let Some(&g) = queue.get(head) {
+            head += 1;
+            let g = g as usize;
+            let (x, y) = (g % gw, g / gw);
+            for nb in [
+                (x > 0).then(|| g - 1),
+                (x + 1 < gw).then(|| g + 1),
+                (y > 0).then(|| g - gw),
+                (y + 1 < gh).then(|| g + gw),
+            ]
+            .into_iter()
+            .flatten()
+            {
+                if grid[nb] == 1 {
+                    grid[nb] = next;
+                    queue.push(nb as u32);
+                }
+            }
+        }
+        if queue.len() > best_size {
+            (best, best_size) = (next, queue.len());
+        }
+        next += 1;
+    }
+    best
+}
+
+/// A smooth correction of the table's height over the plane: a quadratic in the in-plane
+/// coordinates, least-squares fitted to the table's inliers and clamped to
+/// `±MAX_BEND_M`. It absorbs a slightly warped table and the depth bias of real cameras,
+/// which grows with distance (a far table end read a few centimetres high).
+#[derive(Debug, Clone)]
+pub(super) struct Bend {
+    e1: P3,
+    e2: P3,
+    /// Centre of the fitted points in plane coordinates, metres.
+    centre: [f32; 2],
+    /// `c0 + c1 u + c2 v + c3 u² + c4 u v + c5 v²` (u, v relative to `centre`).
+    coef: [f32; 6],
+}
+
+/// Largest correction the bend may apply, metres.
+const MAX_BEND_M: f32 = 0.05;
+
+impl Bend {
+    fn flat(e1: P3, e2: P3) -> Self {
+        Self {
+            e1,
+            e2,
+            centre: [0.0; 2],
+            coef: [0.0; 6],
+        }
+    }
+
+    fn terms(u: f64, v: f64) -> [f64; 6] {
+        [1.0, u, v, u * u, u * v, v * v]
+    }
+
+    /// Fits the plane heights `(p, h)` of the table's points; `None` if there are too few or
+    /// they do not determine a quadratic.
+    fn fit(e1: P3, e2: P3, points: impl Iterator<Item = (P3, f32)>) -> Option<Self> {
+        let mut ata = nalgebra::Matrix6::<f64>::zeros();
+        let mut atb = nalgebra::Vector6::<f64>::zeros();
+        let mut samples: Vec<(f64, f64, f64)> = Vec::new();
+        for (p, h) in points {
+            samples.push((f64::from(dot(e1, p)), f64::from(dot(e2, p)), f64::from(h)));
+        }
+        if samples.len() < 12 {
+            return None;
+        }
+        let k = samples.len() as f64;
+        let cu = samples.iter().map(|s| s.0).sum::<f64>() / k;
+        let cv = samples.iter().map(|s| s.1).sum::<f64>() / k;
+        for &(u, v, h) in &samples {
+            let t = nalgebra::Vector6::from(Self::terms(u - cu, v - cv));
+            ata += t * t.transpose();
+            atb += t * h;
+        }
+        let c = ata.cholesky()?.solve(&atb);
+        let coef = [c[0], c[1], c[2], c[3], c[4], c[5]].map(|v| v as f32);
+        coef.iter().all(|v| v.is_finite()).then_some(Self {
+            e1,
+            e2,
+            centre: [cu as f32, cv as f32],
+            coef,
+        })
+    }
+
+    /// The table's height over the plane under `p`, metres.
+    fn at(&self, p: P3) -> f32 {
+        let (u, v) = (
+            dot(self.e1, p) - self.centre[0],
+            dot(self.e2, p) - self.centre[1],
+        );
+        let c = &self.coef;
+        (c[0] + c[1] * u + c[2] * v + c[3] * u * u + c[4] * u * v + c[5] * v * v)
+            .clamp(-MAX_BEND_M, MAX_BEND_M)
+    }
+}
+
+fn normalise(v: P3) -> P3 {
+    let len = dot(v, v).sqrt();
+    [v[0] / len, v[1] / len, v[2] / len]
+}
+
+/// Best plane among `s.allowed` (optionally near-parallel to `parallel_to`), refitted;
+/// returns it and its inlier count among `s.allowed`.
+fn ransac(
+    pts: &[P3],
+    nrm: &[P3],
+    parallel_to: Option<&TablePlane>,
+    params: &SegmenterParams,
+    rng: &mut Pcg32,
+    s: &mut PlaneScratch,
+) -> (TablePlane, usize) {
+    let cos_normal = params.plane_normal_deg.to_radians().cos();
+    let cos_parallel = PARALLEL_DEG.to_radians().cos();
+    let fallback = TablePlane {
+        normal: Vector3::new(0.0, 0.0, -1.0),
+        offset_m: 1.0,
+    };
+    let m = s.allowed.len();
+    if m < 3 {
+        return (fallback, 0);
+    }
+    let bound = m as u32;
+    s.score.clear();
+    for _ in 0..SCORE_SAMPLES.min(m) {
+        s.score.push(s.allowed[rng.below(bound) as usize]);
+    }
+    let mut best: Option<(TablePlane, usize)> = None;
+    for _ in 0..params.ransac_iterations {
+        let pick = |rng: &mut Pcg32| pts[s.allowed[rng.below(bound) as usize] as usize];
+        let (a, b, c) = (pick(rng), pick(rng), pick(rng));
+        let Some(plane) = TablePlane::through(a, b, c) else {
+            continue;
+        };
+        if let Some(base) = parallel_to
+            && plane.normal.dot(&base.normal) < cos_parallel
+        {
+            continue;
+        }
+        let count = s
+            .score
+            .iter()
+            .filter(|&&i| is_inlier(&plane, pts[i as usize], nrm[i as usize], cos_normal, params))
+            .count();
+        if best.is_none_or(|(_, n)| count > n) {
+            best = Some((plane, count));
+        }
+    }
+    let Some((mut plane, _)) = best else {
+        return (fallback, 0);
+    };
+    for _ in 0..2 {
+        let Some(refit) = refit(pts, nrm, &plane, cos_normal, params, &s.allowed) else {
+            break;
+        };
+        plane = refit;
+    }
+    let count = s
+        .allowed
+        .iter()
+        .filter(|&&i| is_inlier(&plane, pts[i as usize], nrm[i as usize], cos_normal, params))
+        .count();
+    (plane, count)
+}
+
+/// Least-squares plane through the inliers of `plane` among `idx`.
+fn refit(
+    pts: &[P3],
+    nrm: &[P3],
+    plane: &TablePlane,
+    cos_normal: f32,
+    params: &SegmenterParams,
+    idx: &[u32],
+) -> Option<TablePlane> {
+    let mut n = 0.0f64;
+    let mut sum = Vector3::<f64>::zeros();
+    let mut sq = Matrix3::<f64>::zeros();
+    for &i in idx {
+        let p = pts[i as usize];
+        if is_inlier(plane, p, nrm[i as usize], cos_normal, params) {
+            let v = Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+            n += 1.0;
+            sum += v;
+            sq += v * v.transpose();
+        }
+    }
+    if n < 3.0 {
+        return None;
+    }
+    let mean = sum / n;
+    let cov = sq / n - mean * mean.transpose();
+    let eig = SymmetricEigen::new(cov);
+    let k = eig.eigenvalues.imin();
+    let e = eig.eigenvectors.column(k);
+    let normal = [e[0] as f32, e[1] as f32, e[2] as f32];
+    if !normal.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let mut fit = TablePlane::oriented(
+        normalise(normal),
+        [mean.x as f32, mean.y as f32, mean.z as f32],
+    )?;
+    // Keep the refit on the same side as the hypothesis (it is the same surface).
+    if fit.normal.dot(&plane.normal) < 0.0 {
+        fit.normal = -fit.normal;
+        fit.offset_m = -fit.offset_m;
+    }
+    Some(fit)
+}
+
+/// Andrew's monotone chain: the convex hull of `pts` counter-clockwise into `out`
+/// (`pts` is sorted in place).
+fn convex_hull(pts: &mut [[f32; 2]], out: &mut Vec<[f32; 2]>) {
+    out.clear();
+    pts.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    if pts.len() < 3 {
+        out.extend_from_slice(pts);
+        return;
+    }
+    let turn = |o: [f32; 2], a: [f32; 2], b: [f32; 2]| {
+        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+    };
+    for &p in pts.iter() {
+        while out.len() >= 2 && turn(out[out.len() - 2], out[out.len() - 1], p) <= 0.0 {
+            out.pop();
+        }
+        out.push(p);
+    }
+    let lower = out.len() + 1;
+    for &p in pts.iter().rev().skip(1) {
+        while out.len() >= lower && turn(out[out.len() - 2], out[out.len() - 1], p) <= 0.0 {
+            out.pop();
+        }
+        out.push(p);
+    }
+    out.pop();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hull_of_a_square_with_interior_points_is_the_square_ccw() {
+        let mut pts = vec![
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [0.5, 0.5],
+            [1.0, 1.0],
+            [0.0, 1.0],
+            [0.2, 0.7],
+        ];
+        let mut hull = Vec::new();
+        convex_hull(&mut pts, &mut hull);
+        assert_eq!(hull, vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
+    }
+
+    #[test]
+    fn plane_through_points_faces_the_camera() {
+        let p = TablePlane::through([0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 0.0, 1.0]).unwrap();
+        assert!((p.normal.z + 1.0).abs() < 1e-6 && (p.offset_m - 1.0).abs() < 1e-6);
+        assert!(p.height_m(&Point3::new(0.0, 0.0, 0.9)) > 0.0);
+        assert!(TablePlane::through([0.0; 3], [1.0, 0.0, 1.0], [2.0, 0.0, 2.0]).is_none());
+    }
+}

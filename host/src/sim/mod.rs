@@ -620,6 +620,8 @@ impl SimScene {
         let dt = self.config.physics_dt_s;
         let start = point_to_sim(&start_world);
         let dir = dir_to_sim(&dir);
+        // Sleeping bodies would ignore the pusher's first contact.
+        self.world.wake_up_all(true);
         let (pusher, _) = self.world.insert(
             RigidBodyBuilder::kinematic_position_based().translation(start),
             ColliderBuilder::ball(r_m * CM_PER_M).friction(0.3),

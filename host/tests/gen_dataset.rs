@@ -2,6 +2,11 @@
 //! exactness of the ground-truth flow. The dataset (3 scenes, seed 1, 3 pushes) is made once
 //! per test binary and shared.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers: a panic is the failure report"
+)]
+
 use std::{
     collections::BTreeMap,
     fs,

@@ -60,8 +60,9 @@ fn small_scene() -> Scene {
     }
 }
 
+/// A fresh folder under Cargo's scratch space for integration tests.
 fn temp_root(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("riseg-scene-{tag}-{}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("scene-folder-{tag}"));
     let _ = fs::remove_dir_all(&dir);
     fs::create_dir_all(&dir).unwrap();
     dir

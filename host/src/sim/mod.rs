@@ -370,10 +370,11 @@ impl SimScene {
                 let (body, collider) = world.insert(
                     RigidBodyBuilder::dynamic()
                         .pose(p.world_from_object_cm)
-                        // Stand-ins for rolling resistance: without them a pushed ball
-                        // rolls on for ever.
-                        .linear_damping(1.0)
-                        .angular_damping(6.0),
+                        // Stand-ins for the rolling resistance of soft toys: without them
+                        // a pushed ball rolls on for ever; with them it travels about as
+                        // far as it is pushed.
+                        .linear_damping(2.0)
+                        .angular_damping(30.0),
                     ColliderBuilder::new(p.collider.clone())
                         // 400 kg/m³ (hollow plastic toys), in kg/cm³.
                         .density(400.0 / (CM_PER_M * CM_PER_M * CM_PER_M))

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use riseg::r#gen::{PREVIEW_DIR, scene_dir_name, write_dataset};
+use riseg::generate::{PREVIEW_DIR, scene_dir_name, write_dataset};
 
 /// RISeg: robot interactive object segmentation via body frame-invariant features.
 ///

@@ -42,7 +42,7 @@ use riseg_core::Intrinsics;
 use serde::{Deserialize, Serialize};
 
 use crate::imageio::{
-    FlowImage, Gray16Image, Image, ImageIoError, RgbImage, read_flo, read_gray_widened,
+    self, FlowImage, Gray16Image, Image, ImageIoError, RgbImage, read_flo, read_gray_widened,
     read_gray16, read_rgb8, write_atomic, write_flo, write_gray16, write_rgb8,
 };
 
@@ -521,8 +521,9 @@ impl Scene {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
+        let tmp = parent.join(imageio::temp_name(&name, "partial"));
         if tmp.exists() {
+            // Left over from a crashed process that had the same id.
             fs::remove_dir_all(&tmp).map_err(|e| io_error(&tmp, e))?;
         }
         let result = self

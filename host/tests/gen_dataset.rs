@@ -15,7 +15,7 @@ use std::{
 };
 
 use riseg::{
-    r#gen::{GeneratedScene, generate_scene, scene_dir_name, scene_seed, write_dataset},
+    generate::{GeneratedScene, generate_scene, scene_dir_name, scene_seed, write_dataset},
     imageio::{FlowImage, Gray16Image, RgbImage},
     scene::{Scene, list_scenes},
     sim::TABLE_HALF_EXTENTS_M,

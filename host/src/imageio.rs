@@ -17,6 +17,7 @@
 //! width, `i32` height, then `width·height` pairs of `f32` `(dx, dy)` in row-major order.
 //! Flow is in pixels: the pixel `(x, y)` of the first image moves to `(x + dx, y + dy)`.
 
+use core::sync::atomic::{AtomicU64, Ordering};
 use std::{
     fs,
     io::{self, BufReader, Write as _},
@@ -235,6 +236,14 @@ impl ImageIoError {
     }
 }
 
+/// A hidden name beside `name` for a temporary file or folder, unique within this machine's
+/// processes and this process's threads: `.{name}.{kind}-{pid}-{n}`.
+pub(crate) fn temp_name(name: &str, kind: &str) -> String {
+    static NEXT: AtomicU64 = AtomicU64::new(0);
+    let n = NEXT.fetch_add(1, Ordering::Relaxed);
+    format!(".{name}.{kind}-{}-{n}", std::process::id())
+}
+
 /// Writes `bytes` to `path` atomically: a temporary file in the same folder, flushed to
 /// disk, then renamed over `path`. On error the temporary file is removed.
 ///
@@ -248,7 +257,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ImageIoError> {
     let name = path
         .file_name()
         .map_or_else(|| "unnamed".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
+    let tmp = dir.join(temp_name(&name, "tmp"));
     let result = (|| {
         let mut file = fs::File::create(&tmp)?;
         file.write_all(bytes)?;

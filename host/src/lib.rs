@@ -9,11 +9,11 @@
 //! - [`scene`]: the scene folder format (read and written).
 //! - [`sim`]: the simulated tabletop (rapier3d physics, parry3d ray-cast RGB-D, exact
 //!   ground truth).
-//! - [`gen`]: simulated datasets in the scene folder format (`riseg gen`).
+//! - [`generate`]: simulated datasets in the scene folder format (`riseg gen`).
 //! - [`preview`]: a picture of a scene for people.
 
 pub mod eval;
-pub mod r#gen;
+pub mod generate;
 pub mod imageio;
 pub mod metrics;
 pub mod preview;

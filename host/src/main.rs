@@ -7,7 +7,7 @@ use anyhow::Context as _;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use riseg::eval;
-use riseg::r#gen::{PREVIEW_DIR, scene_dir_name, write_dataset};
+use riseg::generate::{PREVIEW_DIR, scene_dir_name, write_dataset};
 use riseg::segment::{
     ClassicalSegmenter, RgbdFrame, SegmenterParams,
     files::{self, FileError},

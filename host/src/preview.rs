@@ -135,14 +135,9 @@ fn draw_arrow(img: &mut RgbImage, from: [f32; 2], to: [f32; 2], tw: u32, th: u32
             let (x, y) = (a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t);
             for (ox, oy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)] {
                 let (px, py) = ((x + ox).round(), (y + oy).round());
-                if px >= 0.0
-                    && py >= 0.0
-                    && (px as u32) < tw
-                    && (py as u32) < th
-                    && let Some(p) = img
-                        .as_mut_slice()
-                        .get_mut(py as usize * width + px as usize)
-                {
+                let inside = px >= 0.0 && py >= 0.0 && (px as u32) < tw && (py as u32) < th;
+                let index = py as usize * width + px as usize;
+                if let Some(p) = img.as_mut_slice().get_mut(index).filter(|_| inside) {
                     *p = ARROW;
                 }
             }

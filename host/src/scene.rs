@@ -42,7 +42,7 @@ use riseg_core::Intrinsics;
 use serde::{Deserialize, Serialize};
 
 use crate::imageio::{
-    FlowImage, Gray16Image, Image, ImageIoError, RgbImage, read_flo, read_gray_widened,
+    self, FlowImage, Gray16Image, Image, ImageIoError, RgbImage, read_flo, read_gray_widened,
     read_gray16, read_rgb8, write_atomic, write_flo, write_gray16, write_rgb8,
 };
 
@@ -262,29 +262,35 @@ fn frame_numbers(dir: &Path, ext: &str) -> Result<Option<Vec<usize>>, SceneError
     Ok(Some(numbers))
 }
 
-/// Checks that `dir` holds frames `0..expected` (`expected = None`: any count ≥ 1, no
-/// gaps) and returns the count.
+/// Checks that `dir` holds exactly frames `0..count` (`expected = Some((count, why))`), or
+/// (`None`) at least one frame without gaps; returns the count. A missing frame is reported
+/// by its file name, a surplus frame likewise.
 fn check_frames(
     dir: &Path,
     ext: &str,
     numbers: &[usize],
     expected: Option<(usize, &str)>,
 ) -> Result<usize, SceneError> {
-    for (t, &n) in numbers.iter().enumerate() {
-        if n != t {
-            return Err(SceneError::Missing {
-                path: dir.join(frame_file_name(t, ext)),
-            });
+    let count = match expected {
+        Some((count, _)) => count,
+        None if numbers.is_empty() => {
+            return Err(invalid(dir, format!("no .{ext} frames")));
         }
+        None => numbers.len(),
+    };
+    // `numbers` is sorted: the first index that differs from its position is a gap.
+    if let Some(t) = (0..count).find(|&t| numbers.get(t) != Some(&t)) {
+        return Err(SceneError::Missing {
+            path: dir.join(frame_file_name(t, ext)),
+        });
     }
-    match expected {
-        Some((count, why)) if numbers.len() != count => Err(invalid(
-            dir,
-            format!("{} frame files, expected {count} ({why})", numbers.len()),
-        )),
-        None if numbers.is_empty() => Err(invalid(dir, format!("no {ext} frames"))),
-        _ => Ok(numbers.len()),
+    if let (Some(&extra), Some((_, why))) = (numbers.get(count), expected) {
+        return Err(invalid(
+            &dir.join(frame_file_name(extra, ext)),
+            format!("one frame too many: expected {count} ({why})"),
+        ));
     }
+    Ok(count)
 }
 
 fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SceneError> {
@@ -367,7 +373,7 @@ impl Scene {
             path: rgb_dir.clone(),
         })?;
         let n = check_frames(&rgb_dir, "png", &rgb_numbers, None)?;
-        let per_frame = Some((n, "one per rgb/ frame"));
+        let per_frame = Some((n, "one per frame in rgb/"));
 
         let depth_dir = dir.join(DEPTH_DIR);
         let depth_numbers =
@@ -515,8 +521,9 @@ impl Scene {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
+        let tmp = parent.join(imageio::temp_name(&name, "partial"));
         if tmp.exists() {
+            // Left over from a crashed process that had the same id.
             fs::remove_dir_all(&tmp).map_err(|e| io_error(&tmp, e))?;
         }
         let result = self

@@ -1,7 +1,7 @@
 //! A simulated dataset from `riseg gen`, scored against itself by `riseg eval`'s library
 //! code: every number must be 100, on every push index.
 
-use riseg::{eval, r#gen::write_dataset};
+use riseg::{eval, generate::write_dataset};
 
 #[test]
 fn generated_dataset_against_itself_scores_100_everywhere() {

@@ -370,10 +370,11 @@ impl SimScene {
                 let (body, collider) = world.insert(
                     RigidBodyBuilder::dynamic()
                         .pose(p.world_from_object_cm)
-                        // Stand-ins for rolling resistance: without them a pushed ball
-                        // rolls on for ever.
-                        .linear_damping(1.0)
-                        .angular_damping(6.0),
+                        // Stand-ins for the rolling resistance of soft toys: without them
+                        // a pushed ball rolls on for ever; with them it travels about as
+                        // far as it is pushed.
+                        .linear_damping(2.0)
+                        .angular_damping(30.0),
                     ColliderBuilder::new(p.collider.clone())
                         // 400 kg/m³ (hollow plastic toys), in kg/cm³.
                         .density(400.0 / (CM_PER_M * CM_PER_M * CM_PER_M))
@@ -620,6 +621,8 @@ impl SimScene {
         let dt = self.config.physics_dt_s;
         let start = point_to_sim(&start_world);
         let dir = dir_to_sim(&dir);
+        // Sleeping bodies would ignore the pusher's first contact.
+        self.world.wake_up_all(true);
         let (pusher, _) = self.world.insert(
             RigidBodyBuilder::kinematic_position_based().translation(start),
             ColliderBuilder::ball(r_m * CM_PER_M).friction(0.3),
@@ -701,5 +704,128 @@ impl SimScene {
             length_m,
             target: pushed,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn camera_is_0_6_m_up_tilted_15_degrees_and_looks_at_the_objects() {
+        let sim = SimScene::new(11).unwrap();
+        let cam = sim.world_from_camera();
+        assert!((cam.translation.z - 0.60).abs() < 1e-5);
+        let axis = cam.rotation * Vector3::z();
+        let tilt_deg = axis.angle(&-Vector3::z()).to_degrees();
+        assert!((tilt_deg - 15.0).abs() < 0.01, "{tilt_deg}");
+        // The objects' centroid on the table projects to the image centre.
+        let poses = sim.object_poses();
+        let c = poses.iter().fold(Vector3::zeros(), |a, p| {
+            a + p.world_from_object.translation.vector
+        }) / poses.len() as f32;
+        let px = sim
+            .intrinsics()
+            .project(&(cam.inverse() * Point3::new(c.x, c.y, 0.0)))
+            .unwrap();
+        assert!(
+            (px.x - 319.5).abs() < 0.5 && (px.y - 239.5).abs() < 0.5,
+            "{px:?}"
+        );
+    }
+
+    #[test]
+    fn renders_are_seeded_and_the_sensor_is_noisy_like_a_d415() {
+        let mut a = SimScene::new(5).unwrap();
+        let mut b = SimScene::new(5).unwrap();
+        let (fa, fb) = (a.render(), b.render());
+        assert_eq!(fa, fb, "same seed, same frame");
+        let again = a.render();
+        assert_eq!(again.labels, fa.labels);
+        assert_eq!(again.true_depth_m, fa.true_depth_m);
+        assert_ne!(again.rgb, fa.rgb, "each render draws fresh sensor noise");
+
+        // Depth noise: about 1 mm at 0.6 m; readings missing only on depth edges.
+        let (mut sum2, mut n, mut missing) = (0.0_f64, 0_u32, 0_u32);
+        let (w, h) = (fa.depth_m.width(), fa.depth_m.height());
+        for y in 1..h - 1 {
+            for x in 1..w - 1 {
+                let z = *fa.true_depth_m.get(x, y).unwrap();
+                let d = *fa.depth_m.get(x, y).unwrap();
+                if d == 0.0 {
+                    missing += 1;
+                    let step = [(x - 1, y), (x + 1, y), (x, y - 1), (x, y + 1)]
+                        .iter()
+                        .map(|&(nx, ny)| (fa.true_depth_m.get(nx, ny).unwrap() - z).abs())
+                        .fold(0.0, f32::max);
+                    assert!(step > 0.01, "missing reading off an edge at ({x}, {y})");
+                } else if (0.59..0.61).contains(&z) {
+                    sum2 += f64::from((d - z) * (d - z));
+                    n += 1;
+                }
+            }
+        }
+        let sigma_mm = (sum2 / f64::from(n)).sqrt() * 1000.0;
+        assert!(
+            (0.8..1.2).contains(&sigma_mm),
+            "depth noise {sigma_mm} mm at 0.6 m"
+        );
+        assert!(missing > 100, "depth edges should lose readings");
+    }
+
+    #[test]
+    fn a_planned_push_moves_its_target_about_the_push_length() {
+        let mut sim = SimScene::new(3).unwrap();
+        let before = sim.object_poses();
+        let push = sim.plan_push(DEFAULT_PUSH_LEN_M).unwrap();
+        assert!((push.direction_world.norm() - 1.0).abs() < 1e-5);
+        assert!(push.direction_world.z.abs() < 1e-6, "pushes are horizontal");
+        sim.push(push.start_world, push.direction_world, push.length_m)
+            .unwrap();
+        let after = sim.object_poses();
+        let moved = |label: u16| {
+            let p = |poses: &[ObjectPose]| {
+                poses
+                    .iter()
+                    .find(|p| p.label == label)
+                    .unwrap()
+                    .world_from_object
+                    .translation
+                    .vector
+            };
+            (p(&after) - p(&before)).dot(&push.direction_world)
+        };
+        let target_m = moved(push.target);
+        // The pusher starts 2 mm from the surface; the object may slide a little further.
+        assert!(
+            (0.012..0.03).contains(&target_m),
+            "target moved {target_m} m"
+        );
+    }
+
+    #[test]
+    fn bad_pushes_are_refused_and_move_nothing() {
+        let mut sim = SimScene::new(4).unwrap();
+        let before = sim.object_poses();
+        let start = Point3::new(0.3, 0.3, 0.02);
+        let x = Vector3::x();
+        for (s, d, len) in [
+            (Point3::new(f32::NAN, 0.0, 0.02), x, 0.02),
+            (start, Vector3::zeros(), 0.02),
+            (start, x, 0.0),
+            (start, x, 1.0),
+            (Point3::new(0.3, 0.3, 0.0), x, 0.02),
+            (start, -Vector3::z(), 0.02),
+        ] {
+            let e = sim.push(s, d, len).unwrap_err();
+            assert!(matches!(e, SimError::BadPush(_)), "{e}");
+        }
+        assert_eq!(sim.object_poses(), before);
+        let mut cfg = SimConfig::D415;
+        cfg.max_objects = 2;
+        assert!(matches!(
+            SimScene::with_config(0, cfg),
+            Err(SimError::BadConfig(_))
+        ));
     }
 }

@@ -26,7 +26,7 @@ use crate::{
     preview::preview,
     scene::{PushAction, Scene, SceneCamera, SceneError},
     sim::{
-        DEFAULT_PUSH_LEN_M, ObjectBounds, Push, RgbdFrame, SimError, SimScene,
+        DEFAULT_PUSH_LEN_M, ObjectBounds, ObjectPose, Push, RgbdFrame, SimError, SimScene,
         TABLE_HALF_EXTENTS_M, ground_truth_flow,
     },
 };
@@ -84,6 +84,8 @@ pub struct GeneratedScene {
     pub preview: RgbImage,
     /// The pushes in the world (table) frame.
     pub pushes: Vec<Push>,
+    /// Every object's pose in the world (table) frame, per frame.
+    pub object_poses: Vec<Vec<ObjectPose>>,
     /// Number of objects.
     pub objects: usize,
     /// Attempts needed (1 = the first simulation was usable).
@@ -225,6 +227,7 @@ fn simulate(seed: u64, pushes: usize) -> Result<Result<GeneratedScene, String>, 
             length_m: p.length_m,
         });
     }
+    let object_poses = frames.iter().map(|f| f.object_poses.clone()).collect();
     let scene = Scene {
         camera: SceneCamera {
             width: config.width,
@@ -245,6 +248,7 @@ fn simulate(seed: u64, pushes: usize) -> Result<Result<GeneratedScene, String>, 
         preview: preview(&scene),
         scene,
         pushes: done,
+        object_poses,
         objects: labels.len(),
         attempts: 1,
     }))

@@ -16,52 +16,50 @@ pub(crate) struct Plane {
     pub data: Vec<f32>,
 }
 
-impl Plane {
-    /// Half the size (floor), each pixel the mean of a 2x2 block. Needs `w, h >= 2`.
-    pub fn downsample(&self) -> Self {
-        let (w2, h2) = (self.w / 2, self.h / 2);
-        let mut data = vec![0.0f32; w2 * h2];
-        if w2 > 0 {
-            data.par_chunks_mut(w2).enumerate().for_each(|(y, out)| {
-                let r0 = &self.data[2 * y * self.w..][..2 * w2];
-                let r1 = &self.data[(2 * y + 1) * self.w..][..2 * w2];
-                for ((o, a), b) in out
-                    .iter_mut()
-                    .zip(r0.chunks_exact(2))
-                    .zip(r1.chunks_exact(2))
-                {
-                    *o = 0.25 * (a[0] + a[1] + b[0] + b[1]);
-                }
-            });
-        }
-        Self { w: w2, h: h2, data }
+/// Half the size (floor), each pixel the mean of a 2x2 block of `src` (`w x h`).
+pub(crate) fn downsample(src: &[f32], w: usize, h: usize) -> Plane {
+    let (w2, h2) = (w / 2, h / 2);
+    let mut data = vec![0.0f32; w2 * h2];
+    if w2 > 0 {
+        data.par_chunks_mut(w2).enumerate().for_each(|(y, out)| {
+            let r0 = &src[2 * y * w..][..2 * w2];
+            let r1 = &src[(2 * y + 1) * w..][..2 * w2];
+            for ((o, a), b) in out
+                .iter_mut()
+                .zip(r0.chunks_exact(2))
+                .zip(r1.chunks_exact(2))
+            {
+                *o = 0.25 * (a[0] + a[1] + b[0] + b[1]);
+            }
+        });
     }
+    Plane { w: w2, h: h2, data }
+}
 
-    /// Central-difference gradients `(d/dx, d/dy)`, one-sided (half-weighted) at the border.
-    pub fn gradients(&self) -> (Vec<f32>, Vec<f32>) {
-        let (w, h) = (self.w, self.h);
-        let mut gx = vec![0.0f32; w * h];
-        let mut gy = vec![0.0f32; w * h];
-        gx.par_chunks_mut(w)
-            .zip(gy.par_chunks_mut(w))
-            .enumerate()
-            .for_each(|(y, (ox, oy))| {
-                let row = &self.data[y * w..][..w];
-                let up = &self.data[y.saturating_sub(1) * w..][..w];
-                let down = &self.data[(y + 1).min(h - 1) * w..][..w];
-                for ((o, a), b) in oy.iter_mut().zip(up).zip(down) {
-                    *o = 0.5 * (b - a);
+/// Central-difference gradients `(d/dx, d/dy)` of `src` (`w x h`, both `>= 1`), one-sided
+/// (half-weighted) at the border.
+pub(crate) fn gradients(src: &[f32], w: usize, h: usize) -> (Vec<f32>, Vec<f32>) {
+    let mut gx = vec![0.0f32; w * h];
+    let mut gy = vec![0.0f32; w * h];
+    gx.par_chunks_mut(w)
+        .zip(gy.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (ox, oy))| {
+            let row = &src[y * w..][..w];
+            let up = &src[y.saturating_sub(1) * w..][..w];
+            let down = &src[(y + 1).min(h - 1) * w..][..w];
+            for ((o, a), b) in oy.iter_mut().zip(up).zip(down) {
+                *o = 0.5 * (b - a);
+            }
+            if w >= 2 {
+                ox[0] = 0.5 * (row[1] - row[0]);
+                ox[w - 1] = 0.5 * (row[w - 1] - row[w - 2]);
+                for (o, pair) in ox[1..w - 1].iter_mut().zip(row.windows(3)) {
+                    *o = 0.5 * (pair[2] - pair[0]);
                 }
-                if w >= 2 {
-                    ox[0] = 0.5 * (row[1] - row[0]);
-                    ox[w - 1] = 0.5 * (row[w - 1] - row[w - 2]);
-                    for (o, pair) in ox[1..w - 1].iter_mut().zip(row.windows(3)) {
-                        *o = 0.5 * (pair[2] - pair[0]);
-                    }
-                }
-            });
-        (gx, gy)
-    }
+            }
+        });
+    (gx, gy)
 }
 
 /// A plane copied into a larger buffer with `pad` replicated pixels on every side, so that
@@ -112,19 +110,19 @@ impl Padded {
 
     /// Bilinear taps for a `size x size` block whose top-left corner is at `(x, y)` in
     /// image coordinates, with the corner clamped so that every tap stays in the buffer
-    /// (`size + pad <= w + pad` must hold, i.e. `size <= w`, and likewise for `h`).
-    /// Non-finite positions clamp to the low corner.
+    /// (`size <= w` and `size <= h` must hold). NaN clamps to the low corner.
     #[inline]
     pub fn tap(&self, x: f32, y: f32, size: usize) -> Tap {
         let pad = self.pad as f32;
-        let x = x.clamp(-pad, (self.w + self.pad - size - 1) as f32);
-        let y = y.clamp(-pad, (self.h + self.pad - size - 1) as f32);
-        // `clamp` passes NaN through; `as usize` maps NaN to 0 (the low corner).
-        let fxf = (x + pad).floor();
-        let fyf = (y + pad).floor();
-        let (ix, iy) = (fxf as usize, fyf as usize);
-        let fx = if x.is_finite() { x + pad - fxf } else { 0.0 };
-        let fy = if y.is_finite() { y + pad - fyf } else { 0.0 };
+        // `max` maps NaN to 0; positions are non-negative, so `as usize` is `floor`.
+        let px = (x + pad)
+            .max(0.0)
+            .min((self.w + 2 * self.pad - size - 1) as f32);
+        let py = (y + pad)
+            .max(0.0)
+            .min((self.h + 2 * self.pad - size - 1) as f32);
+        let (ix, iy) = (px as usize, py as usize);
+        let (fx, fy) = (px - ix as f32, py - iy as f32);
         Tap {
             index: iy * self.stride + ix,
             w00: (1.0 - fx) * (1.0 - fy),
@@ -142,7 +140,7 @@ impl Padded {
     }
 
     /// The value of a precomputed tap.
-    #[inline]
+    #[cfg(test)]
     pub fn sample_at(&self, t: &Tap) -> f32 {
         let d = &self.data[t.index..][..self.stride + 2];
         t.w00 * d[0] + t.w01 * d[1] + t.w10 * d[self.stride] + t.w11 * d[self.stride + 1]
@@ -169,13 +167,13 @@ pub(crate) fn upsample_flow(
     let cols: Vec<(usize, usize, f32)> = (0..dst_w)
         .map(|x| {
             let fx = ((x as f32 + 0.5) * inv - 0.5).clamp(0.0, (src_w - 1) as f32);
-            let x0 = fx.floor() as usize;
+            let x0 = fx as usize; // non-negative: truncation is floor
             (x0, (x0 + 1).min(src_w - 1), fx - x0 as f32)
         })
         .collect();
     dst.par_chunks_mut(dst_w).enumerate().for_each(|(y, out)| {
         let fy = ((y as f32 + 0.5) * inv - 0.5).clamp(0.0, (src_h - 1) as f32);
-        let y0 = fy.floor() as usize;
+        let y0 = fy as usize; // non-negative: truncation is floor
         let y1 = (y0 + 1).min(src_h - 1);
         let ay = fy - y0 as f32;
         let r0 = &src[y0 * src_w..][..src_w];
@@ -197,26 +195,18 @@ mod tests {
 
     #[test]
     fn downsample_averages_blocks() {
-        let p = Plane {
-            w: 5,
-            h: 3,
-            data: (0..15).map(|v| v as f32).collect(),
-        };
-        let d = p.downsample();
+        let src: Vec<f32> = (0..15).map(|v| v as f32).collect();
+        let d = downsample(&src, 5, 3);
         assert_eq!((d.w, d.h), (2, 1));
         assert_eq!(d.data, vec![3.0, 5.0]);
     }
 
     #[test]
     fn gradients_of_a_ramp() {
-        let p = Plane {
-            w: 4,
-            h: 3,
-            data: (0..12)
-                .map(|i| (2 * (i % 4) + 3 * (i / 4)) as f32)
-                .collect(),
-        };
-        let (gx, gy) = p.gradients();
+        let src: Vec<f32> = (0..12)
+            .map(|i| (2 * (i % 4) + 3 * (i / 4)) as f32)
+            .collect();
+        let (gx, gy) = gradients(&src, 4, 3);
         assert_eq!(gx[5], 2.0);
         assert_eq!(gy[5], 3.0);
         assert_eq!(gx[0], 1.0); // half-weighted one-sided difference at the border

@@ -64,8 +64,11 @@ struct Stats {
     rr: f32,
 }
 
-/// Lane-wise accumulation over the patch (4 lanes, so the loop vectorises while the
-/// summation order stays fixed).
+/// Largest patch side the search supports (`FlowParams` validates against it).
+pub(crate) const MAX_PATCH: usize = 32;
+
+/// Sums over the patch. Column-wise accumulators keep every loop element-wise (so it
+/// vectorises) and the summation order fixed.
 #[inline]
 fn stats(
     t: &Template<'_>,
@@ -76,37 +79,38 @@ fn stats(
     v: f32,
     size: usize,
 ) -> Stats {
+    let size = size.min(MAX_PATCH);
     let tap = i1.tap(px as f32 + u, py as f32 + v, size);
     let (w00, w01, w10, w11) = (tap.w00, tap.w01, tap.w10, tap.w11);
-    let mut r = [0.0f32; 4];
-    let mut gxr = [0.0f32; 4];
-    let mut gyr = [0.0f32; 4];
-    let mut rr = [0.0f32; 4];
+    let mut r = [0.0f32; MAX_PATCH];
+    let mut gxr = [0.0f32; MAX_PATCH];
+    let mut gyr = [0.0f32; MAX_PATCH];
+    let mut rr = [0.0f32; MAX_PATCH];
+    let (r, gxr, gyr, rr) = (
+        &mut r[..size],
+        &mut gxr[..size],
+        &mut gyr[..size],
+        &mut rr[..size],
+    );
     for row in 0..size {
         let a = &i1.data[tap.index + row * i1.stride..][..size + 1];
         let b = &i1.data[tap.index + (row + 1) * i1.stride..][..size + 1];
+        let (a0, a1, b0, b1) = (&a[..size], &a[1..], &b[..size], &b[1..]);
         let off = (py + row) * t.w + px;
-        let ti = &t.i0[off..][..size];
-        let gx = &t.gx[off..][..size];
-        let gy = &t.gy[off..][..size];
-        let it = a[..size]
-            .chunks_exact(4)
-            .zip(a[1..].chunks_exact(4))
-            .zip(b[..size].chunks_exact(4))
-            .zip(b[1..].chunks_exact(4))
-            .zip(ti.chunks_exact(4))
-            .zip(gx.chunks_exact(4).zip(gy.chunks_exact(4)));
-        for (((((a0, a1), b0), b1), tc), (gxc, gyc)) in it {
-            for k in 0..4 {
-                let d = w00 * a0[k] + w01 * a1[k] + w10 * b0[k] + w11 * b1[k] - tc[k];
-                r[k] += d;
-                gxr[k] += gxc[k] * d;
-                gyr[k] += gyc[k] * d;
-                rr[k] += d * d;
-            }
+        let (ti, gx, gy) = (
+            &t.i0[off..][..size],
+            &t.gx[off..][..size],
+            &t.gy[off..][..size],
+        );
+        for k in 0..size {
+            let d = w00 * a0[k] + w01 * a1[k] + w10 * b0[k] + w11 * b1[k] - ti[k];
+            r[k] += d;
+            gxr[k] += gx[k] * d;
+            gyr[k] += gy[k] * d;
+            rr[k] += d * d;
         }
     }
-    let sum = |s: [f32; 4]| (s[0] + s[1]) + (s[2] + s[3]);
+    let sum = |s: &[f32]| s.iter().sum::<f32>();
     Stats {
         r: sum(r),
         gxr: sum(gxr),
@@ -116,6 +120,7 @@ fn stats(
 }
 
 /// Per-patch constants: the Gauss-Newton normal matrix inverse and the mean gradient.
+#[derive(Debug, Clone, Copy)]
 struct PatchModel {
     inv: [f32; 3],
     mgx: f32,
@@ -184,9 +189,76 @@ impl PatchModel {
     }
 }
 
+/// Everything one patch search needs besides its position and start.
+struct Ctx<'a> {
+    t: &'a Template<'a>,
+    i1: &'a Padded,
+    s: &'a SearchSettings,
+}
+
+/// A patch's current estimate and its SSD there.
+#[derive(Debug, Clone, Copy)]
+struct State {
+    u: f32,
+    v: f32,
+    ssd: f32,
+    /// Sum of residuals at `(u, v)` (for the brightness offset).
+    r: f32,
+}
+
+impl Ctx<'_> {
+    fn eval(&self, m: &PatchModel, px: usize, py: usize, u: f32, v: f32) -> (State, Stats) {
+        let st = stats(self.t, self.i1, px, py, u, v, self.s.size);
+        let ssd = m.ssd(&st, self.s.mean_normalization);
+        (State { u, v, ssd, r: st.r }, st)
+    }
+
+    /// Gauss-Newton from `start` (with its stats); returns the lowest-SSD point visited.
+    fn descend(&self, m: &PatchModel, px: usize, py: usize, start: State, st: Stats) -> State {
+        let mn = self.s.mean_normalization;
+        let stop2 = self.s.stop_px * self.s.stop_px;
+        let (mut best, mut st, mut u, mut v) = (start, st, start.u, start.v);
+        for _ in 0..self.s.iters {
+            let (du, dv) = m.step(&st, mn);
+            u -= du;
+            v -= dv;
+            let (cur, next) = self.eval(m, px, py, u, v);
+            st = next;
+            if cur.ssd < best.ssd {
+                best = cur;
+            }
+            if du * du + dv * dv < stop2 {
+                break;
+            }
+        }
+        best
+    }
+
+    /// Tries a neighbour's flow: if it matches better, the patch restarts from it.
+    fn propagate(&self, m: &PatchModel, px: usize, py: usize, cur: State, cand: State) -> State {
+        if cand.u == cur.u && cand.v == cur.v {
+            return cur;
+        }
+        let (c, st) = self.eval(m, px, py, cand.u, cand.v);
+        if c.ssd < cur.ssd {
+            let d = self.descend(m, px, py, c, st);
+            if d.ssd < cur.ssd {
+                return d;
+            }
+        }
+        cur
+    }
+}
+
 /// Searches every patch of one level. `init` is the dense flow (`w x h`) the search starts
 /// from (the coarser level's result, zero at the coarsest). Returns one [`PatchFlow`] per
 /// grid patch, row-major over `(ys, xs)`.
+///
+/// Each patch first descends from `init` at its centre, trying its left neighbour's result
+/// as well when propagation is on. With propagation, three more passes follow (downwards
+/// along columns, leftwards along rows, upwards along columns): a patch whose neighbour's
+/// flow matches better restarts from it. Each pass runs its lines in parallel and each
+/// line in order, so the result does not depend on the thread count.
 pub(crate) fn search_level(
     t: &Template<'_>,
     i1: &Padded,
@@ -195,51 +267,97 @@ pub(crate) fn search_level(
     ys: &[usize],
     s: &SearchSettings,
 ) -> Vec<PatchFlow> {
-    let mut out = vec![PatchFlow::default(); xs.len() * ys.len()];
+    let (nx, ny) = (xs.len(), ys.len());
     let size = s.size;
     let mn = s.mean_normalization;
-    let stop2 = s.stop_px * s.stop_px;
-    out.par_chunks_mut(xs.len())
+    let ctx = Ctx { t, i1, s };
+    let models: Vec<PatchModel> = ys
+        .iter()
+        .flat_map(|&py| xs.iter().map(move |&px| (px, py)))
+        .map(|(px, py)| PatchModel::new(t, px, py, size, mn))
+        .collect();
+    let mut state = vec![
+        State {
+            u: 0.0,
+            v: 0.0,
+            ssd: 0.0,
+            r: 0.0,
+        };
+        nx * ny
+    ];
+    // Pass 1: rows, left to right, from the coarser level's flow.
+    state
+        .par_chunks_mut(nx)
+        .zip(models.par_chunks(nx))
         .zip(ys.par_iter())
-        .for_each(|(row_out, &py)| {
-            let mut left: Option<(f32, f32)> = None;
-            for (o, &px) in row_out.iter_mut().zip(xs) {
-                let model = PatchModel::new(t, px, py, size, mn);
+        .for_each(|((row, ms), &py)| {
+            let mut left: Option<State> = None;
+            for ((o, m), &px) in row.iter_mut().zip(ms).zip(xs) {
                 let c = init[(py + size / 2) * t.w + px + size / 2];
-                let (mut u, mut v) = (c[0], c[1]);
-                let mut st = stats(t, i1, px, py, u, v, size);
-                let mut best = (model.ssd(&st, mn), u, v, st.r);
-                if let Some((lu, lv)) = left.filter(|_| s.propagation) {
-                    let ls = stats(t, i1, px, py, lu, lv, size);
-                    let e = model.ssd(&ls, mn);
-                    if e < best.0 {
-                        best = (e, lu, lv, ls.r);
-                        (u, v, st) = (lu, lv, ls);
-                    }
+                let (start, st) = ctx.eval(m, px, py, c[0], c[1]);
+                let mut cur = ctx.descend(m, px, py, start, st);
+                if let Some(l) = left.filter(|_| s.propagation) {
+                    cur = ctx.propagate(m, px, py, cur, l);
                 }
-                for _ in 0..s.iters {
-                    let (du, dv) = model.step(&st, mn);
-                    u -= du;
-                    v -= dv;
-                    st = stats(t, i1, px, py, u, v, size);
-                    let e = model.ssd(&st, mn);
-                    if e < best.0 {
-                        best = (e, u, v, st.r);
-                    }
-                    if du * du + dv * dv < stop2 {
-                        break;
-                    }
-                }
-                let (_, bu, bv, br) = best;
-                *o = PatchFlow {
-                    u: bu,
-                    v: bv,
-                    offset: if mn { br / model.n } else { 0.0 },
-                };
-                left = Some((bu, bv));
+                *o = cur;
+                left = Some(cur);
             }
         });
-    out
+    if s.propagation {
+        // Pass 2 and 4 work on columns: transpose, sweep, transpose back.
+        let mut cols = transpose(&state, nx, ny);
+        let models_t = transpose(&models, nx, ny);
+        sweep_lines(&ctx, &mut cols, &models_t, ny, |j, i| (xs[j], ys[i]), false);
+        state = transpose(&cols, ny, nx);
+        sweep_lines(&ctx, &mut state, &models, nx, |j, i| (xs[i], ys[j]), true);
+        cols = transpose(&state, nx, ny);
+        sweep_lines(&ctx, &mut cols, &models_t, ny, |j, i| (xs[j], ys[i]), true);
+        state = transpose(&cols, ny, nx);
+    }
+    state
+        .iter()
+        .zip(&models)
+        .map(|(st, m)| PatchFlow {
+            u: st.u,
+            v: st.v,
+            offset: if mn { st.r / m.n } else { 0.0 },
+        })
+        .collect()
+}
+
+/// One propagation pass over lines of `len` patches (line `j`, position `i` is the patch
+/// at `pos(j, i)`), forwards or backwards along each line, lines in parallel.
+fn sweep_lines(
+    ctx: &Ctx<'_>,
+    state: &mut [State],
+    models: &[PatchModel],
+    len: usize,
+    pos: impl Fn(usize, usize) -> (usize, usize) + Sync,
+    backwards: bool,
+) {
+    state
+        .par_chunks_mut(len)
+        .zip(models.par_chunks(len))
+        .enumerate()
+        .for_each(|(j, (line, ms))| {
+            let order: Box<dyn Iterator<Item = usize>> = if backwards {
+                Box::new((0..len.saturating_sub(1)).rev())
+            } else {
+                Box::new(1..len)
+            };
+            for i in order {
+                let prev = if backwards { line[i + 1] } else { line[i - 1] };
+                let (px, py) = pos(j, i);
+                line[i] = ctx.propagate(&ms[i], px, py, line[i], prev);
+            }
+        });
+}
+
+/// `rows x cols` row-major into `cols x rows` row-major.
+fn transpose<T: Copy>(a: &[T], cols: usize, rows: usize) -> Vec<T> {
+    (0..cols)
+        .flat_map(|c| (0..rows).map(move |r| a[r * cols + c]))
+        .collect()
 }
 
 #[cfg(test)]

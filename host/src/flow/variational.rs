@@ -1,22 +1,24 @@
-//! Variational refinement (DIS, section 2.3): a few fixed-point iterations that lower
+//! Variational refinement (DIS, section 2.3): lowers
 //!
 //! ```text
-//! E(u) = Σ_x  δ·Ψ((I1(x + u) − I0(x))²)  +  α·Ψ(|∇u_x|² + |∇u_y|²),   Ψ(s²) = √(s² + ε²)
+//! E(du) = Σ_x  δ·Ψ((Iz + Ix·du + Iy·dv)²)  +  α·Ψ(|∇(u + du)|² + |∇(v + dv)|²),
+//! Ψ(s²) = √(s² + ε²)
 //! ```
 //!
-//! Each outer iteration warps the second image by the current flow, linearises the data
-//! term (`Iz + Ix·du + Iy·dv`, gradients averaged over both images), freezes the robust
-//! weights (lagged diffusivity) and solves the resulting sparse linear system for the
-//! increment `(du, dv)` with a few red-black SOR sweeps, then adds the increment.
-//! Pixels warped outside the second image keep only the smoothness term.
+//! around the current flow `u`. Each of `fixed_point_iters` iterations adds the increment
+//! found so far to `u`, warps the second image by `u` (temporal difference `Iz`, gradients
+//! `Ix`, `Iy` averaged over both images), freezes the robust weights (lagged
+//! diffusivity) and runs `sor_iters` red-black SOR sweeps on the resulting linear system
+//! for the new increment. Pixels warped outside the second image keep only the smoothness
+//! term. The result is `u + du`.
 //!
 //! Red-black order makes every half-sweep a set of independent pixel updates, so rows run
 //! in parallel and the result does not depend on the thread count. To keep those updates
-//! contiguous, the solver stores each colour (`(x + y) mod 2`) in its own plane:
-//! pixel `(x, y)` lives at row `y + 1`, slot `x / 2 + 1` of plane `(x + y) mod 2`, with a
-//! zero guard row/slot on every side. All four neighbours of a pixel lie in the other
-//! plane, at slots `k + s`, `k + s + 1` (left, right; `s = (x + y) mod 2` of the *plane
-//! row*, `k = x / 2`) and slot `k + 1` of the rows above and below.
+//! contiguous (and vectorisable), each colour (`(x + y) mod 2`) has its own planes: pixel
+//! `(x, y)` lives at slot `x / 2 + 1` of row `y + 1` of colour `(x + y) mod 2`, with zero
+//! guard rows and slots on every side. With `s = (x + y) mod 2` and `k = x / 2`, the four
+//! neighbours lie in the other colour at slots `k + s` (left) and `k + s + 1` (right) of
+//! the same row and slot `k + 1` of the rows above and below.
 
 use super::pyramid::Padded;
 use rayon::prelude::*;
@@ -24,7 +26,7 @@ use rayon::prelude::*;
 /// Settings of the refinement.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct RefineSettings {
-    pub outer_iters: usize,
+    pub fixed_point_iters: usize,
     pub sor_iters: usize,
     pub sor_omega: f32,
     pub alpha: f32,
@@ -49,12 +51,12 @@ pub(crate) struct RefineInput<'a> {
     pub gy1: &'a Padded,
 }
 
-/// Geometry of the two colour planes.
+/// Geometry of the colour planes.
 #[derive(Debug, Clone, Copy)]
 struct Split {
     w: usize,
     h: usize,
-    /// Plane row stride: `ceil(w / 2)` slots plus two guards.
+    /// Slots per plane row: `ceil(w / 2)` plus two guards.
     ps: usize,
 }
 
@@ -67,247 +69,369 @@ impl Split {
         }
     }
 
-    fn len(&self) -> usize {
-        self.ps * (self.h + 2)
-    }
-
-    /// Parity `s` of plane `c`'s row `y`: its pixels sit at `x = 2k + s`.
+    /// Parity `s` of colour `c`'s row `y`: its pixels sit at `x = 2k + s`.
     fn parity(c: usize, y: usize) -> usize {
         (c + y) & 1
     }
 
-    /// Pixels in plane `c`'s row `y`.
+    /// Pixels of colour `c` in row `y`.
     fn count(&self, c: usize, y: usize) -> usize {
         (self.w + 1 - Self::parity(c, y)) / 2
     }
 }
 
-/// Frozen per-pixel system of one outer iteration:
-/// `a11·du + a12·dv − Σ w_q·du_q = b1`, `a12·du + a22·dv − Σ w_q·dv_q = b2`.
-#[derive(Debug, Clone, Copy, Default)]
-struct Coef {
-    /// Edge weights to the left, right, upper and lower neighbours (0 across the border).
-    wl: f32,
-    wr: f32,
-    wu: f32,
-    wd: f32,
-    a12: f32,
-    inv11: f32,
-    inv22: f32,
-    b1: f32,
-    b2: f32,
+/// `n` planes of one colour, row-interleaved: image row `y` holds plane `j` at
+/// `data[((y + 1)·n + j)·ps ..][.. ps]`, so one contiguous chunk has every plane of a row.
+#[derive(Debug, Clone)]
+struct Planes {
+    ps: usize,
+    n: usize,
+    data: Vec<f32>,
+}
+
+impl Planes {
+    fn new(sp: &Split, n: usize) -> Self {
+        Self {
+            ps: sp.ps,
+            n,
+            data: vec![0.0; sp.ps * n * (sp.h + 2)],
+        }
+    }
+
+    /// Plane `j` of buffer row `yy` (`yy = y + 1`; 0 and `h + 1` are the guard rows).
+    fn row(&self, yy: usize, j: usize) -> &[f32] {
+        &self.data[(yy * self.n + j) * self.ps..][..self.ps]
+    }
+
+    /// `n` values of plane `j` of buffer row `yy` from slot `start`.
+    fn span(&self, yy: usize, j: usize, start: usize, n: usize) -> &[f32] {
+        &self.row(yy, j)[start..][..n]
+    }
+
+    /// The chunks of image rows `0..h` (guard rows excluded), in parallel.
+    fn rows_mut(&mut self, h: usize) -> rayon::slice::ChunksMut<'_, f32> {
+        let c = self.n * self.ps;
+        self.data[c..(h + 1) * c].par_chunks_mut(c)
+    }
 }
 
 /// Refines `flow` (`w x h`, row-major) in place.
 pub(crate) fn refine(inp: &RefineInput<'_>, flow: &mut [[f32; 2]], s: &RefineSettings) {
-    if s.outer_iters == 0 {
+    if s.fixed_point_iters == 0 {
         return;
     }
     let sp = Split::new(inp.w, inp.h);
-    let mut uv = [vec![[0.0f32; 2]; sp.len()], vec![[0.0f32; 2]; sp.len()]];
-    let mut duv = [vec![[0.0f32; 2]; sp.len()], vec![[0.0f32; 2]; sp.len()]];
-    let mut psi = [vec![0.0f32; sp.len()], vec![0.0f32; sp.len()]];
-    let mut coef = [
-        vec![Coef::default(); sp.len()],
-        vec![Coef::default(); sp.len()],
-    ];
-    scatter(&sp, flow, &mut uv);
-    for _ in 0..s.outer_iters {
-        for (c, p) in psi.iter_mut().enumerate() {
-            smoothness_weights(&sp, c, &uv, p, s.alpha);
+    // Per colour: flow (u, v), warped derivatives (ix, iy, iz), increment (du, dv),
+    // smoothness weights to the right and lower neighbour (wr, wd), and the frozen system
+    // (a12, 1/a11, 1/a22, b1, b2).
+    let mut uv = [Planes::new(&sp, 2), Planes::new(&sp, 2)];
+    let mut deriv = [Planes::new(&sp, 3), Planes::new(&sp, 3)];
+    let mut duv = [Planes::new(&sp, 2), Planes::new(&sp, 2)];
+    let mut wts = [Planes::new(&sp, 2), Planes::new(&sp, 2)];
+    let mut sys = [Planes::new(&sp, 5), Planes::new(&sp, 5)];
+    for (c, uvc) in uv.iter_mut().enumerate() {
+        scatter(&sp, c, flow, uvc);
+    }
+    for _ in 0..s.fixed_point_iters {
+        for (c, ((uvc, dc), derc)) in uv
+            .iter_mut()
+            .zip(duv.iter_mut())
+            .zip(deriv.iter_mut())
+            .enumerate()
+        {
+            warp(&sp, c, inp, uvc, dc, derc);
         }
-        for (c, cf) in coef.iter_mut().enumerate() {
-            build_system(&sp, c, inp, &uv, &psi, cf, s.delta);
+        for (c, wc) in wts.iter_mut().enumerate() {
+            smoothness(&sp, c, &uv, &duv, wc, s.alpha);
         }
-        for d in &mut duv {
-            d.fill([0.0; 2]);
+        for (c, sc) in sys.iter_mut().enumerate() {
+            system(&sp, c, &uv, &deriv[c], &duv[c], &wts, sc, s.delta);
         }
         for _ in 0..s.sor_iters {
-            for (c, cf) in coef.iter().enumerate() {
-                let (mine, other) = if c == 0 {
-                    let (a, b) = duv.split_at_mut(1);
-                    (&mut a[0], &b[0])
-                } else {
-                    let (a, b) = duv.split_at_mut(1);
-                    (&mut b[0], &a[0])
-                };
-                sor_half_sweep(&sp, c, cf, mine, other, s.sor_omega);
-            }
-        }
-        for (u, d) in uv.iter_mut().zip(&duv) {
-            for (a, b) in u.iter_mut().zip(d) {
-                a[0] += b[0];
-                a[1] += b[1];
+            for (c, sc) in sys.iter().enumerate() {
+                let [d0, d1] = &mut duv;
+                let (mine, other) = if c == 0 { (d0, &*d1) } else { (d1, &*d0) };
+                sor_half_sweep(&sp, c, sc, &wts, mine, other, s.sor_omega);
             }
         }
     }
-    gather(&sp, &uv, flow);
+    gather(&sp, &uv, &duv, flow);
 }
 
-/// Row-major flow into the two colour planes.
-fn scatter(sp: &Split, flow: &[[f32; 2]], uv: &mut [Vec<[f32; 2]>; 2]) {
-    for (c, plane) in uv.iter_mut().enumerate() {
-        for y in 0..sp.h {
-            let s = Split::parity(c, y);
-            let row = &mut plane[(y + 1) * sp.ps + 1..][..sp.count(c, y)];
-            let src = &flow[y * sp.w..][..sp.w];
-            for (k, o) in row.iter_mut().enumerate() {
-                *o = src[2 * k + s];
-            }
-        }
-    }
-}
-
-/// The two colour planes back into a row-major flow.
-fn gather(sp: &Split, uv: &[Vec<[f32; 2]>; 2], flow: &mut [[f32; 2]]) {
-    for (c, plane) in uv.iter().enumerate() {
-        for y in 0..sp.h {
-            let s = Split::parity(c, y);
-            let row = &plane[(y + 1) * sp.ps + 1..][..sp.count(c, y)];
-            let dst = &mut flow[y * sp.w..][..sp.w];
-            for (k, v) in row.iter().enumerate() {
-                dst[2 * k + s] = *v;
-            }
-        }
-    }
-}
-
-/// `α / √(|∇u|² + |∇v|² + ε²)` for every pixel of plane `c` (forward differences, zero
-/// across the border).
-fn smoothness_weights(sp: &Split, c: usize, uv: &[Vec<[f32; 2]>; 2], psi: &mut [f32], alpha: f32) {
-    let (mine, other) = (&uv[c], &uv[1 - c]);
+/// Row-major flow into colour `c`'s `(u, v)` planes.
+fn scatter(sp: &Split, c: usize, flow: &[[f32; 2]], uv: &mut Planes) {
     let ps = sp.ps;
-    psi[ps..(sp.h + 1) * ps]
-        .par_chunks_mut(ps)
-        .enumerate()
-        .for_each(|(y, out)| {
-            let s = Split::parity(c, y);
-            let row = (y + 1) * ps;
-            for k in 0..sp.count(c, y) {
-                let x = 2 * k + s;
-                let p = mine[row + k + 1];
-                let mut g2 = EPS_SMOOTH * EPS_SMOOTH;
-                if x + 1 < sp.w {
-                    let r = other[row + k + s + 1];
-                    g2 += (r[0] - p[0]).powi(2) + (r[1] - p[1]).powi(2);
-                }
-                if y + 1 < sp.h {
-                    let d = other[row + ps + k + 1];
-                    g2 += (d[0] - p[0]).powi(2) + (d[1] - p[1]).powi(2);
-                }
-                out[k + 1] = alpha / g2.sqrt();
-            }
-        });
+    uv.rows_mut(sp.h).enumerate().for_each(|(y, chunk)| {
+        let s = Split::parity(c, y);
+        let n = sp.count(c, y);
+        let (ur, vr) = chunk.split_at_mut(ps);
+        let src = &flow[y * sp.w..][..sp.w];
+        for k in 0..n {
+            let f = src[2 * k + s];
+            ur[k + 1] = f[0];
+            vr[k + 1] = f[1];
+        }
+    });
 }
 
-/// Linearises the energy around the current flow for every pixel of plane `c`.
-fn build_system(
+/// Moves colour `c`'s increment into its flow (`u += du`, `du = 0`) and warps the second
+/// image by the result: `Iz = I1(x + u) − I0(x)`, `Ix`, `Iy` averaged over both images.
+fn warp(
     sp: &Split,
     c: usize,
     inp: &RefineInput<'_>,
-    uv: &[Vec<[f32; 2]>; 2],
-    psi: &[Vec<f32>; 2],
-    coef: &mut [Coef],
-    delta: f32,
+    uv: &mut Planes,
+    duv: &mut Planes,
+    deriv: &mut Planes,
 ) {
-    let (mine, other) = (&uv[c], &uv[1 - c]);
-    let (psi_mine, psi_other) = (&psi[c], &psi[1 - c]);
     let ps = sp.ps;
     let (wmax, hmax) = ((sp.w - 1) as f32, (sp.h - 1) as f32);
-    coef[ps..(sp.h + 1) * ps]
-        .par_chunks_mut(ps)
+    let (pad, stride) = (inp.i1.pad as f32, inp.i1.stride);
+    uv.rows_mut(sp.h)
+        .zip(duv.rows_mut(sp.h))
+        .zip(deriv.rows_mut(sp.h))
         .enumerate()
-        .for_each(|(y, out)| {
+        .for_each(|(y, ((uvr, dr), der))| {
             let s = Split::parity(c, y);
-            let row = (y + 1) * ps;
-            for k in 0..sp.count(c, y) {
-                let x = 2 * k + s;
-                let o = row + k;
-                let p = mine[o + 1];
-                let own = psi_mine[o + 1];
-                let wl = psi_other[o + s];
-                let wr = if x + 1 < sp.w { own } else { 0.0 };
-                let wu = psi_other[o + 1 - ps];
-                let wd = if y + 1 < sp.h { own } else { 0.0 };
-                let nl = other[o + s];
-                let nr = other[o + s + 1];
-                let nu = other[o + 1 - ps];
-                let nd = other[o + 1 + ps];
-                let su = wl * (nl[0] - p[0])
-                    + wr * (nr[0] - p[0])
-                    + wu * (nu[0] - p[0])
-                    + wd * (nd[0] - p[0]);
-                let sv = wl * (nl[1] - p[1])
-                    + wr * (nr[1] - p[1])
-                    + wu * (nu[1] - p[1])
-                    + wd * (nd[1] - p[1]);
-                let wsum = wl + wr + wu + wd;
-                let i = y * sp.w + x;
-                let (xw, yw) = (x as f32 + p[0], y as f32 + p[1]);
-                let (mut a11, mut a12, mut a22, mut b1, mut b2) = (wsum, 0.0, wsum, su, sv);
+            let n = sp.count(c, y);
+            let (ur, vr) = uvr.split_at_mut(ps);
+            let (dur, dvr) = dr.split_at_mut(ps);
+            let (ixr, rest) = der.split_at_mut(ps);
+            let (iyr, izr) = rest.split_at_mut(ps);
+            let (i0, gx0, gy0) = (
+                &inp.i0[y * sp.w..][..sp.w],
+                &inp.gx0[y * sp.w..][..sp.w],
+                &inp.gy0[y * sp.w..][..sp.w],
+            );
+            for k in 1..=n {
+                ur[k] += dur[k];
+                vr[k] += dvr[k];
+                dur[k] = 0.0;
+                dvr[k] = 0.0;
+                let x = 2 * (k - 1) + s;
+                let (xw, yw) = (x as f32 + ur[k], y as f32 + vr[k]);
+                let mut d = [0.0f32; 3];
                 if (0.0..=wmax).contains(&xw) && (0.0..=hmax).contains(&yw) {
-                    let tap = inp.i1.tap(xw, yw, 1);
-                    let iz = inp.i1.sample_at(&tap) - inp.i0[i];
-                    let ix = 0.5 * (inp.gx1.sample_at(&tap) + inp.gx0[i]);
-                    let iy = 0.5 * (inp.gy1.sample_at(&tap) + inp.gy0[i]);
-                    let pd = delta / (iz * iz + EPS_DATA * EPS_DATA).sqrt();
-                    a11 += pd * ix * ix;
-                    a12 = pd * ix * iy;
-                    a22 += pd * iy * iy;
-                    b1 -= pd * ix * iz;
-                    b2 -= pd * iy * iz;
+                    // Inside the image, so every tap is inside the padded buffers and the
+                    // (non-negative) positions truncate to their floor.
+                    let (px, py) = (xw + pad, yw + pad);
+                    let (ix, iy) = (px as usize, py as usize);
+                    let (ax, ay) = (px - ix as f32, py - iy as f32);
+                    let at = iy * stride + ix;
+                    let tap = |p: &Padded| {
+                        p.data.get(at..at + stride + 2).map_or(0.0, |q| {
+                            let top = q[0] + ax * (q[1] - q[0]);
+                            let bottom = q[stride] + ax * (q[stride + 1] - q[stride]);
+                            top + ay * (bottom - top)
+                        })
+                    };
+                    d = [
+                        0.5 * (tap(inp.gx1) + gx0[x]),
+                        0.5 * (tap(inp.gy1) + gy0[x]),
+                        tap(inp.i1) - i0[x],
+                    ];
                 }
-                let inv = |a: f32| if a > 0.0 { 1.0 / a } else { 0.0 };
-                out[k + 1] = Coef {
-                    wl,
-                    wr,
-                    wu,
-                    wd,
-                    a12,
-                    inv11: inv(a11),
-                    inv22: inv(a22),
-                    b1,
-                    b2,
-                };
+                // Out of view: zero derivatives make the data term vanish.
+                [ixr[k], iyr[k], izr[k]] = d;
             }
         });
 }
 
-/// One SOR update of every pixel of plane `c` (its neighbours, in `other`, stay fixed).
+/// `α / √(|∇(u+du)|² + |∇(v+dv)|² + ε²)` for colour `c` (forward differences), stored as
+/// the weight of the edge to the right and to the lower neighbour (0 across the border).
+fn smoothness(
+    sp: &Split,
+    c: usize,
+    uv: &[Planes; 2],
+    duv: &[Planes; 2],
+    out: &mut Planes,
+    alpha: f32,
+) {
+    let ps = sp.ps;
+    let (uvm, uvo, dm, dov) = (&uv[c], &uv[1 - c], &duv[c], &duv[1 - c]);
+    let eps2 = EPS_SMOOTH * EPS_SMOOTH;
+    out.rows_mut(sp.h).enumerate().for_each(|(y, chunk)| {
+        let s = Split::parity(c, y);
+        let n = sp.count(c, y);
+        let yy = y + 1;
+        let (um, vm) = (&uvm.row(yy, 0)[1..][..n], &uvm.row(yy, 1)[1..][..n]);
+        let (dum, dvm) = (&dm.row(yy, 0)[1..][..n], &dm.row(yy, 1)[1..][..n]);
+        let (ur, vr) = (&uvo.row(yy, 0)[s + 1..][..n], &uvo.row(yy, 1)[s + 1..][..n]);
+        let (dur, dvr) = (&dov.row(yy, 0)[s + 1..][..n], &dov.row(yy, 1)[s + 1..][..n]);
+        let (ud, vd) = (&uvo.row(yy + 1, 0)[1..][..n], &uvo.row(yy + 1, 1)[1..][..n]);
+        let (dud, dvd) = (&dov.row(yy + 1, 0)[1..][..n], &dov.row(yy + 1, 1)[1..][..n]);
+        let (wr, wd) = chunk.split_at_mut(ps);
+        let (wr, wd) = (&mut wr[1..][..n], &mut wd[1..][..n]);
+        for k in 0..n {
+            let (pu, pv) = (um[k] + dum[k], vm[k] + dvm[k]);
+            let ux = ur[k] + dur[k] - pu;
+            let vx = vr[k] + dvr[k] - pv;
+            let uy = ud[k] + dud[k] - pu;
+            let vy = vd[k] + dvd[k] - pv;
+            let g = alpha / (ux * ux + vx * vx + uy * uy + vy * vy + eps2).sqrt();
+            wr[k] = g;
+            wd[k] = g;
+        }
+        // Across the right and bottom borders there is no edge. (The differences read
+        // there came from guard slots and only affected these zeroed weights.)
+        if n > 0 && 2 * (n - 1) + s + 1 == sp.w {
+            let last_g = {
+                let k = n - 1;
+                let (pu, pv) = (um[k] + dum[k], vm[k] + dvm[k]);
+                let uy = ud[k] + dud[k] - pu;
+                let vy = vd[k] + dvd[k] - pv;
+                alpha / (uy * uy + vy * vy + eps2).sqrt()
+            };
+            wr[n - 1] = 0.0;
+            wd[n - 1] = last_g;
+        }
+        if y + 1 == sp.h {
+            for k in 0..n {
+                let (pu, pv) = (um[k] + dum[k], vm[k] + dvm[k]);
+                let ux = ur[k] + dur[k] - pu;
+                let vx = vr[k] + dvr[k] - pv;
+                wd[k] = 0.0;
+                if wr[k] != 0.0 {
+                    wr[k] = alpha / (ux * ux + vx * vx + eps2).sqrt();
+                }
+            }
+        }
+    });
+}
+
+/// Freezes the system of colour `c` at the current increment.
+#[allow(clippy::too_many_arguments)]
+fn system(
+    sp: &Split,
+    c: usize,
+    uv: &[Planes; 2],
+    deriv: &Planes,
+    duv: &Planes,
+    wts: &[Planes; 2],
+    out: &mut Planes,
+    delta: f32,
+) {
+    let ps = sp.ps;
+    let (uvm, uvo, wm, wo) = (&uv[c], &uv[1 - c], &wts[c], &wts[1 - c]);
+    let eps2 = EPS_DATA * EPS_DATA;
+    out.rows_mut(sp.h).enumerate().for_each(|(y, chunk)| {
+        let s = Split::parity(c, y);
+        let n = sp.count(c, y);
+        let yy = y + 1;
+        let (ix, iy, iz) = (
+            deriv.span(yy, 0, 1, n),
+            deriv.span(yy, 1, 1, n),
+            deriv.span(yy, 2, 1, n),
+        );
+        let (du, dv) = (duv.span(yy, 0, 1, n), duv.span(yy, 1, 1, n));
+        let (um, vm) = (uvm.span(yy, 0, 1, n), uvm.span(yy, 1, 1, n));
+        let (wr, wd) = (wm.span(yy, 0, 1, n), wm.span(yy, 1, 1, n));
+        let wl = &wo.row(yy, 0)[s..][..n];
+        let wu = &wo.row(yy - 1, 1)[1..][..n];
+        let (ul, vl) = (&uvo.row(yy, 0)[s..][..n], &uvo.row(yy, 1)[s..][..n]);
+        let (ur, vr) = (&uvo.row(yy, 0)[s + 1..][..n], &uvo.row(yy, 1)[s + 1..][..n]);
+        let (uu, vu) = (&uvo.row(yy - 1, 0)[1..][..n], &uvo.row(yy - 1, 1)[1..][..n]);
+        let (ud, vd) = (&uvo.row(yy + 1, 0)[1..][..n], &uvo.row(yy + 1, 1)[1..][..n]);
+        let mut parts = chunk.chunks_exact_mut(ps).map(|r| &mut r[1..][..n]);
+        let (Some(a12), Some(inv11), Some(inv22), Some(b1), Some(b2)) = (
+            parts.next(),
+            parts.next(),
+            parts.next(),
+            parts.next(),
+            parts.next(),
+        ) else {
+            return;
+        };
+        for k in 0..n {
+            let r = iz[k] + ix[k] * du[k] + iy[k] * dv[k];
+            let pd = delta / (r * r + eps2).sqrt();
+            let wsum = wl[k] + wr[k] + wu[k] + wd[k];
+            let a11 = pd * ix[k] * ix[k] + wsum;
+            let a22 = pd * iy[k] * iy[k] + wsum;
+            a12[k] = pd * ix[k] * iy[k];
+            inv11[k] = if a11 > 0.0 { 1.0 / a11 } else { 0.0 };
+            inv22[k] = if a22 > 0.0 { 1.0 / a22 } else { 0.0 };
+            b1[k] = -pd * ix[k] * iz[k]
+                + wl[k] * (ul[k] - um[k])
+                + wr[k] * (ur[k] - um[k])
+                + wu[k] * (uu[k] - um[k])
+                + wd[k] * (ud[k] - um[k]);
+            b2[k] = -pd * iy[k] * iz[k]
+                + wl[k] * (vl[k] - vm[k])
+                + wr[k] * (vr[k] - vm[k])
+                + wu[k] * (vu[k] - vm[k])
+                + wd[k] * (vd[k] - vm[k]);
+        }
+    });
+}
+
+/// One SOR update of every pixel of colour `c` (its neighbours, in `other`, stay fixed):
+/// `du ← du + ω·((b1 + Σ w·du_q − a12·dv)/a11 − du)`, then `dv` likewise.
 fn sor_half_sweep(
     sp: &Split,
     c: usize,
-    coef: &[Coef],
-    mine: &mut [[f32; 2]],
-    other: &[[f32; 2]],
+    sys: &Planes,
+    wts: &[Planes; 2],
+    mine: &mut Planes,
+    other: &Planes,
     omega: f32,
 ) {
     let ps = sp.ps;
-    mine[ps..(sp.h + 1) * ps]
-        .par_chunks_mut(ps)
-        .enumerate()
-        .for_each(|(y, out)| {
+    let (wm, wo) = (&wts[c], &wts[1 - c]);
+    mine.rows_mut(sp.h).enumerate().for_each(|(y, chunk)| {
+        let s = Split::parity(c, y);
+        let n = sp.count(c, y);
+        let yy = y + 1;
+        let (a12, inv11, inv22, b1, b2) = (
+            sys.span(yy, 0, 1, n),
+            sys.span(yy, 1, 1, n),
+            sys.span(yy, 2, 1, n),
+            sys.span(yy, 3, 1, n),
+            sys.span(yy, 4, 1, n),
+        );
+        let (wr, wd) = (wm.span(yy, 0, 1, n), wm.span(yy, 1, 1, n));
+        let wl = &wo.row(yy, 0)[s..][..n];
+        let wu = &wo.row(yy - 1, 1)[1..][..n];
+        let (dul, dvl) = (&other.row(yy, 0)[s..][..n], &other.row(yy, 1)[s..][..n]);
+        let (dur, dvr) = (
+            &other.row(yy, 0)[s + 1..][..n],
+            &other.row(yy, 1)[s + 1..][..n],
+        );
+        let (duu, dvu) = (
+            &other.row(yy - 1, 0)[1..][..n],
+            &other.row(yy - 1, 1)[1..][..n],
+        );
+        let (dud, dvd) = (
+            &other.row(yy + 1, 0)[1..][..n],
+            &other.row(yy + 1, 1)[1..][..n],
+        );
+        let (du, dv) = chunk.split_at_mut(ps);
+        let (du, dv) = (&mut du[1..][..n], &mut dv[1..][..n]);
+        for k in 0..n {
+            let nu = wl[k] * dul[k] + wr[k] * dur[k] + wu[k] * duu[k] + wd[k] * dud[k];
+            let nv = wl[k] * dvl[k] + wr[k] * dvr[k] + wu[k] * dvu[k] + wd[k] * dvd[k];
+            let u1 = du[k] + omega * ((b1[k] + nu - a12[k] * dv[k]) * inv11[k] - du[k]);
+            let v1 = dv[k] + omega * ((b2[k] + nv - a12[k] * u1) * inv22[k] - dv[k]);
+            du[k] = u1;
+            dv[k] = v1;
+        }
+    });
+}
+
+/// `u + du` from the colour planes back into a row-major flow.
+fn gather(sp: &Split, uv: &[Planes; 2], duv: &[Planes; 2], flow: &mut [[f32; 2]]) {
+    flow.par_chunks_mut(sp.w).enumerate().for_each(|(y, row)| {
+        for c in 0..2 {
             let s = Split::parity(c, y);
             let n = sp.count(c, y);
-            let row = (y + 1) * ps;
-            let cf = &coef[row + 1..][..n];
-            let left = &other[row + s..][..n];
-            let right = &other[row + s + 1..][..n];
-            let up = &other[row - ps + 1..][..n];
-            let down = &other[row + ps + 1..][..n];
-            let it = out[1..=n]
-                .iter_mut()
-                .zip(cf)
-                .zip(left.iter().zip(right))
-                .zip(up.iter().zip(down));
-            for (((d, q), (l, r)), (u, dn)) in it {
-                let nu = q.wl * l[0] + q.wr * r[0] + q.wu * u[0] + q.wd * dn[0];
-                let nv = q.wl * l[1] + q.wr * r[1] + q.wu * u[1] + q.wd * dn[1];
-                let du = d[0] + omega * ((q.b1 + nu - q.a12 * d[1]) * q.inv11 - d[0]);
-                let dv = d[1] + omega * ((q.b2 + nv - q.a12 * du) * q.inv22 - d[1]);
-                *d = [du, dv];
+            let yy = y + 1;
+            let (u, v) = (&uv[c].row(yy, 0)[1..][..n], &uv[c].row(yy, 1)[1..][..n]);
+            let (du, dv) = (&duv[c].row(yy, 0)[1..][..n], &duv[c].row(yy, 1)[1..][..n]);
+            for k in 0..n {
+                row[2 * k + s] = [u[k] + du[k], v[k] + dv[k]];
             }
-        });
+        }
+    });
 }
 
 #[cfg(test)]
@@ -315,36 +439,75 @@ mod tests {
     use super::*;
 
     #[test]
-    fn split_round_trip_and_neighbours() {
-        for (w, h) in [(5, 3), (4, 4), (1, 1), (1, 2)] {
+    fn neighbour_slots_match_the_module_docs() {
+        for (w, h) in [(5, 3), (4, 4), (1, 1), (1, 2), (2, 1)] {
             let sp = Split::new(w, h);
-            let flow: Vec<[f32; 2]> = (0..w * h).map(|i| [i as f32, -(i as f32)]).collect();
-            let mut uv = [vec![[0.0; 2]; sp.len()], vec![[0.0; 2]; sp.len()]];
-            scatter(&sp, &flow, &mut uv);
-            let mut back = vec![[9.0; 2]; w * h];
-            gather(&sp, &uv, &mut back);
-            assert_eq!(back, flow);
-            // The slots named in the module docs hold the four neighbours.
+            // Load pixel indices as the flow's u component, in both colours.
+            let mut planes = [Planes::new(&sp, 1), Planes::new(&sp, 1)];
+            for (c, p) in planes.iter_mut().enumerate() {
+                p.rows_mut(h).enumerate().for_each(|(y, row)| {
+                    let s = Split::parity(c, y);
+                    for k in 0..sp.count(c, y) {
+                        row[k + 1] = (y * w + 2 * k + s) as f32;
+                    }
+                });
+            }
             for y in 0..h {
                 for x in 0..w {
                     let c = (x + y) & 1;
                     let s = Split::parity(c, y);
-                    let o = (y + 1) * sp.ps + x / 2;
-                    let other = &uv[1 - c];
+                    let (k, yy) = (x / 2, y + 1);
+                    let other = &planes[1 - c];
+                    assert_eq!(planes[c].row(yy, 0)[k + 1], (y * w + x) as f32);
                     if x > 0 {
-                        assert_eq!(other[o + s][0], (y * w + x - 1) as f32);
+                        assert_eq!(other.row(yy, 0)[k + s], (y * w + x - 1) as f32);
                     }
                     if x + 1 < w {
-                        assert_eq!(other[o + s + 1][0], (y * w + x + 1) as f32);
+                        assert_eq!(other.row(yy, 0)[k + s + 1], (y * w + x + 1) as f32);
                     }
                     if y > 0 {
-                        assert_eq!(other[o + 1 - sp.ps][0], ((y - 1) * w + x) as f32);
+                        assert_eq!(other.row(yy - 1, 0)[k + 1], ((y - 1) * w + x) as f32);
                     }
                     if y + 1 < h {
-                        assert_eq!(other[o + 1 + sp.ps][0], ((y + 1) * w + x) as f32);
+                        assert_eq!(other.row(yy + 1, 0)[k + 1], ((y + 1) * w + x) as f32);
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn a_smooth_flow_with_no_data_stays() {
+        // Flat images: no data term, constant flow is already a minimum.
+        let (w, h) = (6, 5);
+        let flat = vec![7.0f32; w * h];
+        let zero = vec![0.0f32; w * h];
+        let pad = Padded::new(&flat, w, h, 2);
+        let gpad = Padded::new(&zero, w, h, 2);
+        let inp = RefineInput {
+            w,
+            h,
+            i0: &flat,
+            gx0: &zero,
+            gy0: &zero,
+            i1: &pad,
+            gx1: &gpad,
+            gy1: &gpad,
+        };
+        let mut flow = vec![[0.5f32, -1.25]; w * h];
+        let s = RefineSettings {
+            fixed_point_iters: 2,
+            sor_iters: 3,
+            sor_omega: 1.6,
+            alpha: 20.0,
+            delta: 5.0,
+        };
+        refine(&inp, &mut flow, &s);
+        for v in &flow {
+            assert!(
+                (v[0] - 0.5).abs() < 1e-6 && (v[1] + 1.25).abs() < 1e-6,
+                "{v:?}"
+            );
         }
     }
 }

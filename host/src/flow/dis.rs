@@ -32,8 +32,9 @@
 //! ```
 
 use super::densify::densify;
+use super::pool::Pool;
 use super::pyramid::{Padded, Plane, downsample, gradients, upsample_flow};
-use super::search::{SearchSettings, Template, positions, search_level};
+use super::search::{Grid, SearchSettings, Template, positions, search_level};
 use super::variational::{RefineInput, RefineSettings, refine};
 use super::{Flow, FlowError, FlowEstimator, GrayF32, RgbView, check_pair};
 use std::sync::Arc;
@@ -170,6 +171,9 @@ const PAD: usize = 16;
 pub struct DisFlow {
     params: FlowParams,
     pool: Option<Arc<rayon::ThreadPool>>,
+    /// Buffers kept between calls (shared by clones).
+    buffers: Arc<Pool>,
+    flows: Arc<Pool<[f32; 2]>>,
 }
 
 impl DisFlow {
@@ -179,7 +183,12 @@ impl DisFlow {
     /// [`FlowError::InvalidParams`] if a field is out of its documented range.
     pub fn new(params: FlowParams) -> Result<Self, FlowError> {
         params.validate()?;
-        Ok(Self { params, pool: None })
+        Ok(Self {
+            params,
+            pool: None,
+            buffers: Arc::default(),
+            flows: Arc::default(),
+        })
     }
 
     /// The same estimator on its own pool of `threads` threads (`0`: rayon's global pool).
@@ -282,11 +291,12 @@ impl DisFlow {
         let (mut fw, mut fh) = (0, 0);
         for l in (finest..=coarsest).rev() {
             let (i0, i1, lw, lh) = level(l);
-            flow = if l == coarsest {
-                vec![[0.0; 2]; lw * lh]
+            let next = if l == coarsest {
+                self.flows.zeroed(lw * lh)
             } else {
-                upsample_flow(&flow, fw, fh, lw, lh, 2)
+                upsample_flow(&flow, fw, fh, lw, lh, 2, &self.flows)
             };
+            self.flows.put(core::mem::replace(&mut flow, next));
             (fw, fh) = (lw, lh);
             let step = LevelStep {
                 gd_iters: prm.gd_iters,
@@ -296,7 +306,8 @@ impl DisFlow {
             self.level(i0, i1, lw, lh, &mut flow, &step);
         }
         if finest > 0 {
-            flow = upsample_flow(&flow, fw, fh, w, h, 1 << finest);
+            let full = upsample_flow(&flow, fw, fh, w, h, 1 << finest, &self.flows);
+            self.flows.put(core::mem::replace(&mut flow, full));
         }
         if polish {
             let step = LevelStep {
@@ -324,9 +335,10 @@ impl DisFlow {
         step: &LevelStep,
     ) {
         let prm = &self.params;
+        let pool = &*self.buffers;
         let p = prm.patch_size_px;
-        let (gx0, gy0) = gradients(i0, w, h);
-        let i1p = Padded::new(i1, w, h, PAD);
+        let (gx0, gy0) = gradients(i0, w, h, pool);
+        let i1p = Padded::new(i1, w, h, PAD, pool);
         let t = Template {
             w,
             i0,
@@ -343,9 +355,19 @@ impl DisFlow {
             propagation: step.propagation,
         };
         let patches = search_level(&t, &i1p, flow, &xs, &ys, &search);
-        *flow = densify(&t, &i1p, &patches, &xs, &ys, p, h);
+        let grid = Grid {
+            xs: &xs,
+            ys: &ys,
+            size: p,
+        };
+        let dense = densify(&t, &i1p, &patches, &grid, h, pool, &self.flows);
+        self.flows.put(core::mem::replace(flow, dense));
         if step.variational_iters > 0 {
-            let (gx1, gy1) = gradients(i1, w, h);
+            let (gx1, gy1) = gradients(i1, w, h, pool);
+            let gx1p = Padded::new(&gx1, w, h, PAD, pool);
+            let gy1p = Padded::new(&gy1, w, h, PAD, pool);
+            pool.put(gx1);
+            pool.put(gy1);
             let inp = RefineInput {
                 w,
                 h,
@@ -353,8 +375,8 @@ impl DisFlow {
                 gx0: &gx0,
                 gy0: &gy0,
                 i1: &i1p,
-                gx1: &Padded::new(&gx1, w, h, PAD),
-                gy1: &Padded::new(&gy1, w, h, PAD),
+                gx1: &gx1p,
+                gy1: &gy1p,
             };
             let settings = RefineSettings {
                 fixed_point_iters: step.variational_iters,
@@ -363,8 +385,13 @@ impl DisFlow {
                 alpha: prm.smoothness,
                 delta: prm.data_weight,
             };
-            refine(&inp, flow, &settings);
+            refine(&inp, flow, &settings, pool);
+            pool.put(gx1p.data);
+            pool.put(gy1p.data);
         }
+        pool.put(i1p.data);
+        pool.put(gx0);
+        pool.put(gy0);
     }
 }
 

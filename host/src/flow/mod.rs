@@ -25,6 +25,7 @@ pub mod testdata;
 pub mod viz;
 
 mod densify;
+mod pool;
 mod pyramid;
 mod search;
 mod variational;

@@ -6,6 +6,7 @@
 //! its centre sits at `(2i + 0.5, 2j + 0.5)` in level-`l` coordinates and displacements
 //! scale by exactly 2 between levels.
 
+use super::pool::Pool;
 use rayon::prelude::*;
 
 /// A plain row-major `f32` plane.
@@ -38,9 +39,9 @@ pub(crate) fn downsample(src: &[f32], w: usize, h: usize) -> Plane {
 
 /// Central-difference gradients `(d/dx, d/dy)` of `src` (`w x h`, both `>= 1`), one-sided
 /// (half-weighted) at the border.
-pub(crate) fn gradients(src: &[f32], w: usize, h: usize) -> (Vec<f32>, Vec<f32>) {
-    let mut gx = vec![0.0f32; w * h];
-    let mut gy = vec![0.0f32; w * h];
+pub(crate) fn gradients(src: &[f32], w: usize, h: usize, pool: &Pool) -> (Vec<f32>, Vec<f32>) {
+    let mut gx = pool.zeroed(w * h);
+    let mut gy = pool.zeroed(w * h);
     gx.par_chunks_mut(w)
         .zip(gy.par_chunks_mut(w))
         .enumerate()
@@ -85,9 +86,9 @@ pub(crate) struct Tap {
 
 impl Padded {
     /// Copies `src` (`w x h`, both `>= 1`) with `pad >= 1` replicated border pixels.
-    pub fn new(src: &[f32], w: usize, h: usize, pad: usize) -> Self {
+    pub fn new(src: &[f32], w: usize, h: usize, pad: usize, pool: &Pool) -> Self {
         let stride = w + 2 * pad;
-        let mut data = vec![0.0f32; stride * (h + 2 * pad)];
+        let mut data = pool.zeroed(stride * (h + 2 * pad));
         data.par_chunks_mut(stride)
             .enumerate()
             .for_each(|(py, out)| {
@@ -156,8 +157,9 @@ pub(crate) fn upsample_flow(
     dst_w: usize,
     dst_h: usize,
     scale: usize,
+    pool: &Pool<[f32; 2]>,
 ) -> Vec<[f32; 2]> {
-    let mut dst = vec![[0.0f32; 2]; dst_w * dst_h];
+    let mut dst = pool.zeroed(dst_w * dst_h);
     if src_w == 0 || src_h == 0 || dst_w == 0 {
         return dst;
     }
@@ -206,7 +208,7 @@ mod tests {
         let src: Vec<f32> = (0..12)
             .map(|i| (2 * (i % 4) + 3 * (i / 4)) as f32)
             .collect();
-        let (gx, gy) = gradients(&src, 4, 3);
+        let (gx, gy) = gradients(&src, 4, 3, &Pool::default());
         assert_eq!(gx[5], 2.0);
         assert_eq!(gy[5], 3.0);
         assert_eq!(gx[0], 1.0); // half-weighted one-sided difference at the border
@@ -215,7 +217,7 @@ mod tests {
     #[test]
     fn padded_sampling_is_bilinear_and_clamped() {
         let src: Vec<f32> = (0..12).map(|v| v as f32).collect();
-        let p = Padded::new(&src, 4, 3, 2);
+        let p = Padded::new(&src, 4, 3, 2, &Pool::default());
         assert_eq!(p.sample(1.0, 1.0), 5.0);
         assert!((p.sample(1.5, 1.25) - 6.5).abs() < 1e-6);
         assert_eq!(p.sample(-10.0, -10.0), 0.0);
@@ -226,7 +228,7 @@ mod tests {
     #[test]
     fn upsampling_scales_vectors_and_keeps_constants() {
         let src = vec![[1.0, -2.0]; 6];
-        let dst = upsample_flow(&src, 3, 2, 6, 4, 2);
+        let dst = upsample_flow(&src, 3, 2, 6, 4, 2, &Pool::default());
         assert!(dst.iter().all(|v| *v == [2.0, -4.0]));
     }
 }

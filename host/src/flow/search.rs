@@ -27,6 +27,14 @@ pub(crate) fn positions(len: usize, size: usize, stride: usize) -> Vec<usize> {
     v
 }
 
+/// The patch grid of one level: top-left corners along x and y, and the patch side.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Grid<'a> {
+    pub xs: &'a [usize],
+    pub ys: &'a [usize],
+    pub size: usize,
+}
+
 /// One patch's result: its flow and the mean of `second - first` over the patch at that
 /// flow (the brightness offset mean normalisation removes; zero without it).
 #[derive(Debug, Clone, Copy, Default)]
@@ -130,21 +138,24 @@ struct PatchModel {
 
 impl PatchModel {
     fn new(t: &Template<'_>, px: usize, py: usize, size: usize, mean_norm: bool) -> Self {
-        let mut sxx = 0.0f32;
-        let mut sxy = 0.0f32;
-        let mut syy = 0.0f32;
-        let mut sx = 0.0f32;
-        let mut sy = 0.0f32;
+        // Column-wise sums (element-wise loops vectorise), then a fixed-order total.
+        let size = size.min(MAX_PATCH);
+        let mut cols = [[0.0f32; MAX_PATCH]; 5];
         for row in 0..size {
             let off = (py + row) * t.w + px;
-            for (&gx, &gy) in t.gx[off..][..size].iter().zip(&t.gy[off..][..size]) {
-                sxx += gx * gx;
-                sxy += gx * gy;
-                syy += gy * gy;
-                sx += gx;
-                sy += gy;
+            let (gx, gy) = (&t.gx[off..][..size], &t.gy[off..][..size]);
+            let [cxx, cxy, cyy, cx, cy] = &mut cols;
+            let (cxx, cxy, cyy) = (&mut cxx[..size], &mut cxy[..size], &mut cyy[..size]);
+            let (cx, cy) = (&mut cx[..size], &mut cy[..size]);
+            for k in 0..size {
+                cxx[k] += gx[k] * gx[k];
+                cxy[k] += gx[k] * gy[k];
+                cyy[k] += gy[k] * gy[k];
+                cx[k] += gx[k];
+                cy[k] += gy[k];
             }
         }
+        let [sxx, sxy, syy, sx, sy] = cols.map(|c| c[..size].iter().sum::<f32>());
         let n = (size * size) as f32;
         let (mgx, mgy) = if mean_norm {
             (sx / n, sy / n)

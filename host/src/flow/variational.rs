@@ -20,6 +20,7 @@
 //! neighbours lie in the other colour at slots `k + s` (left) and `k + s + 1` (right) of
 //! the same row and slot `k + 1` of the rows above and below.
 
+use super::pool::Pool;
 use super::pyramid::Padded;
 use rayon::prelude::*;
 
@@ -90,11 +91,11 @@ struct Planes {
 }
 
 impl Planes {
-    fn new(sp: &Split, n: usize) -> Self {
+    fn new(sp: &Split, n: usize, pool: &Pool) -> Self {
         Self {
             ps: sp.ps,
             n,
-            data: vec![0.0; sp.ps * n * (sp.h + 2)],
+            data: pool.zeroed(sp.ps * n * (sp.h + 2)),
         }
     }
 
@@ -116,7 +117,12 @@ impl Planes {
 }
 
 /// Refines `flow` (`w x h`, row-major) in place.
-pub(crate) fn refine(inp: &RefineInput<'_>, flow: &mut [[f32; 2]], s: &RefineSettings) {
+pub(crate) fn refine(
+    inp: &RefineInput<'_>,
+    flow: &mut [[f32; 2]],
+    s: &RefineSettings,
+    pool: &Pool,
+) {
     if s.fixed_point_iters == 0 {
         return;
     }
@@ -124,11 +130,11 @@ pub(crate) fn refine(inp: &RefineInput<'_>, flow: &mut [[f32; 2]], s: &RefineSet
     // Per colour: flow (u, v), warped derivatives (ix, iy, iz), increment (du, dv),
     // smoothness weights to the right and lower neighbour (wr, wd), and the frozen system
     // (a12, 1/a11, 1/a22, b1, b2).
-    let mut uv = [Planes::new(&sp, 2), Planes::new(&sp, 2)];
-    let mut deriv = [Planes::new(&sp, 3), Planes::new(&sp, 3)];
-    let mut duv = [Planes::new(&sp, 2), Planes::new(&sp, 2)];
-    let mut wts = [Planes::new(&sp, 2), Planes::new(&sp, 2)];
-    let mut sys = [Planes::new(&sp, 5), Planes::new(&sp, 5)];
+    let mut uv = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
+    let mut deriv = [Planes::new(&sp, 3, pool), Planes::new(&sp, 3, pool)];
+    let mut duv = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
+    let mut wts = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
+    let mut sys = [Planes::new(&sp, 5, pool), Planes::new(&sp, 5, pool)];
     for (c, uvc) in uv.iter_mut().enumerate() {
         scatter(&sp, c, flow, uvc);
     }
@@ -156,6 +162,9 @@ pub(crate) fn refine(inp: &RefineInput<'_>, flow: &mut [[f32; 2]], s: &RefineSet
         }
     }
     gather(&sp, &uv, &duv, flow);
+    for p in [uv, deriv, duv, wts, sys].into_iter().flatten() {
+        pool.put(p.data);
+    }
 }
 
 /// Row-major flow into colour `c`'s `(u, v)` planes.
@@ -443,7 +452,8 @@ mod tests {
         for (w, h) in [(5, 3), (4, 4), (1, 1), (1, 2), (2, 1)] {
             let sp = Split::new(w, h);
             // Load pixel indices as the flow's u component, in both colours.
-            let mut planes = [Planes::new(&sp, 1), Planes::new(&sp, 1)];
+            let pool = Pool::default();
+            let mut planes = [Planes::new(&sp, 1, &pool), Planes::new(&sp, 1, &pool)];
             for (c, p) in planes.iter_mut().enumerate() {
                 p.rows_mut(h).enumerate().for_each(|(y, row)| {
                     let s = Split::parity(c, y);
@@ -482,8 +492,9 @@ mod tests {
         let (w, h) = (6, 5);
         let flat = vec![7.0f32; w * h];
         let zero = vec![0.0f32; w * h];
-        let pad = Padded::new(&flat, w, h, 2);
-        let gpad = Padded::new(&zero, w, h, 2);
+        let pool = Pool::default();
+        let pad = Padded::new(&flat, w, h, 2, &pool);
+        let gpad = Padded::new(&zero, w, h, 2, &pool);
         let inp = RefineInput {
             w,
             h,
@@ -502,7 +513,7 @@ mod tests {
             alpha: 20.0,
             delta: 5.0,
         };
-        refine(&inp, &mut flow, &s);
+        refine(&inp, &mut flow, &s, &pool);
         for v in &flow {
             assert!(
                 (v[0] - 0.5).abs() < 1e-6 && (v[1] + 1.25).abs() < 1e-6,

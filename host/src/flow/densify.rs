@@ -61,7 +61,7 @@ pub(crate) fn densify(
                 }
             }
         });
-    let mut flow = flows.zeroed(w * h);
+    let mut flow = flows.scratch(w * h);
     flow.par_chunks_mut(w)
         .zip(sums.par_chunks(3 * w))
         .for_each(|(out, chunk)| {

@@ -20,17 +20,7 @@ impl<T> Default for Pool<T> {
 impl<T: Copy + Default> Pool<T> {
     /// A buffer of `len` zeros, reusing the smallest kept buffer that is large enough.
     pub fn zeroed(&self, len: usize) -> Vec<T> {
-        let reused = {
-            let mut free = self.0.lock().unwrap_or_else(PoisonError::into_inner);
-            let best = free
-                .iter()
-                .enumerate()
-                .filter(|(_, v)| v.capacity() >= len)
-                .min_by_key(|(_, v)| v.capacity())
-                .map(|(i, _)| i);
-            best.map(|i| free.swap_remove(i))
-        };
-        match reused {
+        match self.take(len) {
             Some(mut v) => {
                 v.clear();
                 v.resize(len, T::default());
@@ -38,6 +28,31 @@ impl<T: Copy + Default> Pool<T> {
             }
             None => vec![T::default(); len],
         }
+    }
+
+    /// A buffer of `len` values of no particular content (the caller overwrites all of
+    /// them), reusing the smallest kept buffer that is large enough.
+    pub fn scratch(&self, len: usize) -> Vec<T> {
+        match self.take(len) {
+            Some(mut v) => {
+                v.truncate(len);
+                v.resize(len, T::default());
+                v
+            }
+            None => vec![T::default(); len],
+        }
+    }
+
+    /// The smallest kept buffer with room for `len` values, if any.
+    fn take(&self, len: usize) -> Option<Vec<T>> {
+        let mut free = self.0.lock().unwrap_or_else(PoisonError::into_inner);
+        let best = free
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| v.capacity() >= len)
+            .min_by_key(|(_, v)| v.capacity())
+            .map(|(i, _)| i);
+        best.map(|i| free.swap_remove(i))
     }
 
     /// Gives a buffer back for later calls.
@@ -64,6 +79,9 @@ mod tests {
         assert_eq!(b.len(), 50);
         assert!(b.iter().all(|&v| v == 0.0));
         assert_eq!(b.capacity(), cap, "the kept buffer was reused");
+        pool.put(b);
+        let d = pool.scratch(80);
+        assert_eq!((d.len(), d.capacity()), (80, cap));
         let c = pool.zeroed(1000);
         assert_eq!(c.len(), 1000);
     }

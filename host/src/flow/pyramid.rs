@@ -40,8 +40,8 @@ pub(crate) fn downsample(src: &[f32], w: usize, h: usize) -> Plane {
 /// Central-difference gradients `(d/dx, d/dy)` of `src` (`w x h`, both `>= 1`), one-sided
 /// (half-weighted) at the border.
 pub(crate) fn gradients(src: &[f32], w: usize, h: usize, pool: &Pool) -> (Vec<f32>, Vec<f32>) {
-    let mut gx = pool.zeroed(w * h);
-    let mut gy = pool.zeroed(w * h);
+    let mut gx = pool.scratch(w * h);
+    let mut gy = pool.scratch(w * h);
     gx.par_chunks_mut(w)
         .zip(gy.par_chunks_mut(w))
         .enumerate()
@@ -58,6 +58,8 @@ pub(crate) fn gradients(src: &[f32], w: usize, h: usize, pool: &Pool) -> (Vec<f3
                 for (o, pair) in ox[1..w - 1].iter_mut().zip(row.windows(3)) {
                     *o = 0.5 * (pair[2] - pair[0]);
                 }
+            } else {
+                ox.fill(0.0);
             }
         });
     (gx, gy)
@@ -88,7 +90,7 @@ impl Padded {
     /// Copies `src` (`w x h`, both `>= 1`) with `pad >= 1` replicated border pixels.
     pub fn new(src: &[f32], w: usize, h: usize, pad: usize, pool: &Pool) -> Self {
         let stride = w + 2 * pad;
-        let mut data = pool.zeroed(stride * (h + 2 * pad));
+        let mut data = pool.scratch(stride * (h + 2 * pad));
         data.par_chunks_mut(stride)
             .enumerate()
             .for_each(|(py, out)| {
@@ -122,8 +124,10 @@ impl Padded {
         let py = (y + pad)
             .max(0.0)
             .min((self.h + 2 * self.pad - size - 1) as f32);
-        let (ix, iy) = (px as usize, py as usize);
+        // Both are below 2^31 (buffer sides), and `i32` conversions are single instructions.
+        let (ix, iy) = (px as i32, py as i32);
         let (fx, fy) = (px - ix as f32, py - iy as f32);
+        let (ix, iy) = (ix.unsigned_abs() as usize, iy.unsigned_abs() as usize);
         Tap {
             index: iy * self.stride + ix,
             w00: (1.0 - fx) * (1.0 - fy),
@@ -159,8 +163,9 @@ pub(crate) fn upsample_flow(
     scale: usize,
     pool: &Pool<[f32; 2]>,
 ) -> Vec<[f32; 2]> {
-    let mut dst = pool.zeroed(dst_w * dst_h);
+    let mut dst = pool.scratch(dst_w * dst_h);
     if src_w == 0 || src_h == 0 || dst_w == 0 {
+        dst.fill([0.0; 2]);
         return dst;
     }
     let s = scale as f32;

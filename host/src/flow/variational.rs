@@ -223,10 +223,11 @@ fn warp(
                 if (0.0..=wmax).contains(&xw) && (0.0..=hmax).contains(&yw) {
                     // Inside the image, so every tap is inside the padded buffers and the
                     // (non-negative) positions truncate to their floor.
+                    // (`i32` conversions are single instructions; `usize` ones are not.)
                     let (px, py) = (xw + pad, yw + pad);
-                    let (ix, iy) = (px as usize, py as usize);
+                    let (ix, iy) = (px as i32, py as i32);
                     let (ax, ay) = (px - ix as f32, py - iy as f32);
-                    let at = iy * stride + ix;
+                    let at = iy.unsigned_abs() as usize * stride + ix.unsigned_abs() as usize;
                     let tap = |p: &Padded| {
                         p.data.get(at..at + stride + 2).map_or(0.0, |q| {
                             let top = q[0] + ax * (q[1] - q[0]);

@@ -13,6 +13,7 @@
 //! - [`preview`]: a picture of a scene for people.
 
 pub mod eval;
+pub mod flow;
 pub mod generate;
 pub mod imageio;
 pub mod metrics;

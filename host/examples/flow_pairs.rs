@@ -1,0 +1,177 @@
+//! Writes image pairs with exact ground-truth flow (textured rigid objects on a textured
+//! background, 640x480, from `riseg::flow::testdata`) into a folder, then times riseg's
+//! DIS flow on them on one thread and prints endpoint errors.
+//!
+//! ```sh
+//! cargo run --release -p riseg --example flow_pairs -- /tmp/flow-pairs --pairs 6 --runs 7
+//! ```
+//!
+//! Files per pair `i` (two digits): `pair_i_a.png`, `pair_i_b.png` (8-bit RGB),
+//! `pair_i_gt.flo` (Middlebury), `pair_i_mask.png` (8-bit gray, 255 on moving-object pixels
+//! of the first image). `bench/flow_vs_opencv.py` reads the same files.
+//!
+//! Output: one tab-separated row per method: name, mean EPE on moving-object pixels, mean
+//! EPE on all pixels (both in pixels, averaged over pairs), and the mean over pairs of the
+//! median time of `--runs` runs (milliseconds, after one warm-up run). The time covers
+//! `FlowEstimator::estimate` on the decoded RGB images, RGB-to-luma conversion included.
+
+use anyhow::{Context as _, Result};
+use clap::Parser;
+use riseg::flow::{
+    DisFlow, Flow, FlowEstimator as _, FlowParams, RgbView,
+    flo::{read_flo, write_atomic, write_flo},
+    testdata::Scene,
+};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Debug, Parser)]
+struct Args {
+    /// Folder for the pairs (created if missing).
+    dir: PathBuf,
+    /// Number of pairs.
+    #[arg(long, default_value_t = 6)]
+    pairs: usize,
+    /// Timed runs per pair and method (the median is reported).
+    #[arg(long, default_value_t = 7)]
+    runs: usize,
+    /// Seed of the first pair (pair `i` uses `seed + i`).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// riseg presets to run, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "ultrafast,fast,medium")]
+    presets: Vec<String>,
+    /// Print one row per pair as well.
+    #[arg(long)]
+    per_pair: bool,
+}
+
+fn write_png(path: &Path, width: usize, height: usize, data: Vec<u8>, rgb: bool) -> Result<()> {
+    let (w, h) = (u32::try_from(width)?, u32::try_from(height)?);
+    let mut bytes = Vec::new();
+    let mut cursor = std::io::Cursor::new(&mut bytes);
+    if rgb {
+        image::RgbImage::from_raw(w, h, data)
+            .context("RGB buffer size")?
+            .write_to(&mut cursor, image::ImageFormat::Png)?;
+    } else {
+        image::GrayImage::from_raw(w, h, data)
+            .context("gray buffer size")?
+            .write_to(&mut cursor, image::ImageFormat::Png)?;
+    }
+    write_atomic(path, &bytes).with_context(|| format!("writing {}", path.display()))
+}
+
+struct Pair {
+    name: String,
+    first: image::RgbImage,
+    second: image::RgbImage,
+    truth: Flow,
+    moving: Vec<bool>,
+}
+
+fn load(dir: &Path, name: &str) -> Result<Pair> {
+    let rgb = |suffix: &str| -> Result<image::RgbImage> {
+        let p = dir.join(format!("{name}_{suffix}.png"));
+        Ok(image::open(&p)
+            .with_context(|| format!("reading {}", p.display()))?
+            .to_rgb8())
+    };
+    let mask_path = dir.join(format!("{name}_mask.png"));
+    let mask = image::open(&mask_path)
+        .with_context(|| format!("reading {}", mask_path.display()))?
+        .to_luma8();
+    Ok(Pair {
+        name: name.to_owned(),
+        first: rgb("a")?,
+        second: rgb("b")?,
+        truth: read_flo(&dir.join(format!("{name}_gt.flo")))?,
+        moving: mask.as_raw().iter().map(|&v| v > 127).collect(),
+    })
+}
+
+fn view(img: &image::RgbImage) -> Result<RgbView<'_>> {
+    Ok(RgbView::new(
+        img.width() as usize,
+        img.height() as usize,
+        img.as_raw(),
+    )?)
+}
+
+fn main() -> Result<()> {
+    let args = Args::parse();
+    std::fs::create_dir_all(&args.dir)
+        .with_context(|| format!("creating {}", args.dir.display()))?;
+    let (w, h) = (640, 480);
+    let mut pairs = Vec::new();
+    for i in 0..args.pairs {
+        let name = format!("pair_{i:02}");
+        let p = Scene::random_objects(w, h, args.seed + i as u64).render();
+        let moving: Vec<u8> = p
+            .labels
+            .iter()
+            .zip(p.flow.as_slice())
+            .map(|(&l, v)| {
+                if l > 0 && (v[0] != 0.0 || v[1] != 0.0) {
+                    255
+                } else {
+                    0
+                }
+            })
+            .collect();
+        write_png(&args.dir.join(format!("{name}_a.png")), w, h, p.first, true)?;
+        write_png(
+            &args.dir.join(format!("{name}_b.png")),
+            w,
+            h,
+            p.second,
+            true,
+        )?;
+        write_png(
+            &args.dir.join(format!("{name}_mask.png")),
+            w,
+            h,
+            moving,
+            false,
+        )?;
+        write_flo(&args.dir.join(format!("{name}_gt.flo")), &p.flow)?;
+        pairs.push(load(&args.dir, &name)?);
+    }
+    for preset in &args.presets {
+        let params =
+            FlowParams::preset(preset).with_context(|| format!("unknown preset {preset:?}"))?;
+        let est = DisFlow::new(params)?.with_threads(1)?;
+        let (mut obj, mut all, mut ms) = (0.0, 0.0, 0.0);
+        for p in &pairs {
+            let (a, b) = (view(&p.first)?, view(&p.second)?);
+            let mut flow = est.estimate(a, b)?;
+            let mut times = Vec::with_capacity(args.runs);
+            for _ in 0..args.runs.max(1) {
+                let t = Instant::now();
+                flow = est.estimate(a, b)?;
+                times.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+            times.sort_by(f64::total_cmp);
+            let median = times[times.len() / 2];
+            let e_obj = flow.mean_epe(&p.truth, Some(&p.moving))?;
+            let e_all = flow.mean_epe(&p.truth, None)?;
+            if args.per_pair {
+                println!(
+                    "riseg-{preset}/{}\t{e_obj:.3}\t{e_all:.3}\t{median:.1}",
+                    p.name
+                );
+            }
+            obj += e_obj;
+            all += e_all;
+            ms += median;
+        }
+        let n = pairs.len().max(1) as f64;
+        println!(
+            "riseg-{preset}\t{:.3}\t{:.3}\t{:.1}",
+            obj / n,
+            all / n,
+            ms / n
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,77 @@
+//! Densification (DIS, section 2.2): each pixel's flow is the weighted mean of the flows of
+//! the patches that cover it, a patch weighing `1 / max(1, |d|)` where `d` is its
+//! photometric residual at that pixel (`second(x + u) - first(x)`, less the patch's
+//! brightness offset under mean normalisation).
+//!
+//! Output rows are independent tasks and each pixel sums its patches in grid order, so the
+//! result does not depend on the thread count.
+
+use super::pool::Pool;
+use super::pyramid::Padded;
+use super::search::{Grid, PatchFlow, Template};
+use rayon::prelude::*;
+
+/// Dense `w x h` flow from the patch flows of one level (`patches` row-major over the
+/// grid, which covers every pixel).
+pub(crate) fn densify(
+    t: &Template<'_>,
+    i1: &Padded,
+    patches: &[PatchFlow],
+    grid: &Grid<'_>,
+    h: usize,
+    pool: &Pool,
+    flows: &Pool<[f32; 2]>,
+) -> Vec<[f32; 2]> {
+    let (xs, ys, size) = (grid.xs, grid.ys, grid.size);
+    let w = t.w;
+    // Sums of weight, weight·u and weight·v in separate planes (element-wise loops).
+    let mut sums = pool.zeroed(3 * w * h);
+    sums.par_chunks_mut(3 * w)
+        .enumerate()
+        .for_each(|(y, chunk)| {
+            let (sw, rest) = chunk.split_at_mut(w);
+            let (su, sv) = rest.split_at_mut(w);
+            let first = ys.partition_point(|&py| py + size <= y);
+            let t_row = &t.i0[y * w..][..w];
+            for (j, &py) in ys.iter().enumerate().skip(first) {
+                if py > y {
+                    break;
+                }
+                let r = y - py;
+                for (&px, p) in xs.iter().zip(&patches[j * xs.len()..][..xs.len()]) {
+                    let tap = i1.tap(px as f32 + p.u, py as f32 + p.v, size);
+                    let a = &i1.data[tap.index + r * i1.stride..][..size + 1];
+                    let b = &i1.data[tap.index + (r + 1) * i1.stride..][..size + 1];
+                    let (a0, a1, b0, b1) = (&a[..size], &a[1..], &b[..size], &b[1..]);
+                    let tc = &t_row[px..][..size];
+                    let (cw, cu, cv) = (
+                        &mut sw[px..][..size],
+                        &mut su[px..][..size],
+                        &mut sv[px..][..size],
+                    );
+                    for k in 0..size {
+                        let s =
+                            tap.w00 * a0[k] + tap.w01 * a1[k] + tap.w10 * b0[k] + tap.w11 * b1[k];
+                        let d = (s - tc[k] - p.offset).abs();
+                        let lambda = 1.0 / d.max(1.0);
+                        cw[k] += lambda;
+                        cu[k] += lambda * p.u;
+                        cv[k] += lambda * p.v;
+                    }
+                }
+            }
+        });
+    let mut flow = flows.scratch(w * h);
+    flow.par_chunks_mut(w)
+        .zip(sums.par_chunks(3 * w))
+        .for_each(|(out, chunk)| {
+            let (sw, rest) = chunk.split_at(w);
+            let (su, sv) = rest.split_at(w);
+            for (((o, &wt), &u), &v) in out.iter_mut().zip(sw).zip(su).zip(sv) {
+                let inv = if wt > 0.0 { 1.0 / wt } else { 0.0 };
+                *o = [u * inv, v * inv];
+            }
+        });
+    pool.put(sums);
+    flow
+}

@@ -1,0 +1,581 @@
+//! [`DisFlow`]: Dense Inverse Search optical flow (Kroeger, Timofte, Dai, Van Gool, "Fast
+//! Optical Flow using Dense Inverse Search", ECCV 2016), written for this crate.
+//!
+//! Coarse to fine over a 2x2-box image pyramid, from the coarsest level down to
+//! [`FlowParams::finest_level`], each level:
+//! 1. **inverse search**: a grid of `patch_size_px` patches every `patch_stride_px`
+//!    pixels; each patch starts from the coarser level's dense flow (or its left
+//!    neighbour's result, if that matches better) and runs up to `gd_iters`
+//!    inverse-compositional Gauss-Newton steps on its SSD;
+//! 2. **densification**: each pixel averages the flows of the patches covering it,
+//!    weighted by their photometric residual there;
+//! 3. **variational refinement**: `variational_iters` fixed-point iterations of a
+//!    data + smoothness energy, each solved by `sor_iters` red-black SOR sweeps.
+//!
+//! The finest level's flow is then upsampled bilinearly to full resolution.
+//!
+//! # Threads
+//! Work is split over rayon tasks (patch rows, pixel rows). [`DisFlow::new`] uses rayon's
+//! global pool; [`DisFlow::with_threads`] gives the estimator its own pool (`1` for
+//! single-thread benchmarks). The output is bit-identical for any thread count.
+//!
+//! # Examples
+//! ```
+//! use riseg::flow::{DisFlow, FlowParams, GrayF32, testdata};
+//!
+//! let pair = testdata::translated(160, 120, 7, [1.5, -0.75]);
+//! let (a, b) = (pair.first_gray(), pair.second_gray());
+//! let flow = DisFlow::new(FlowParams::MEDIUM)?.estimate_gray(&a, &b)?;
+//! let epe = flow.mean_epe(&pair.flow, Some(&pair.interior))?;
+//! assert!(epe < 0.5, "{epe}");
+//! # Ok::<(), riseg::flow::FlowError>(())
+//! ```
+
+use super::densify::densify;
+use super::pool::Pool;
+use super::pyramid::{Padded, Plane, downsample, gradients, upsample_flow};
+use super::search::{Grid, SearchSettings, Template, positions, search_level};
+use super::variational::{RefineInput, RefineSettings, refine};
+use super::{Flow, FlowError, FlowEstimator, GrayF32, RgbView, check_pair};
+use std::sync::Arc;
+
+/// Parameters of [`DisFlow`]. Start from a preset ([`FlowParams::ULTRAFAST`],
+/// [`FlowParams::FAST`], [`FlowParams::MEDIUM`]) and change fields as needed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub struct FlowParams {
+    /// Side of a square patch, pixels: a multiple of 4 in `4..=32`.
+    pub patch_size_px: usize,
+    /// Distance between neighbouring patches, pixels: `1..=patch_size_px`.
+    pub patch_stride_px: usize,
+    /// Pyramid level (0 = full resolution) where the estimation stops; coarser levels
+    /// are faster and smoother. Clamped to the coarsest level the image allows.
+    pub finest_level: usize,
+    /// Pyramid level where the estimation starts; `None` picks one from the image size
+    /// (a patch covers about a quarter of the image's longer side there).
+    pub coarsest_level: Option<usize>,
+    /// Maximum Gauss-Newton iterations per patch.
+    pub gd_iters: usize,
+    /// A patch stops iterating once a step is shorter than this, pixels of its level.
+    pub gd_stop_px: f32,
+    /// Compare patches after subtracting their mean (robust to brightness change).
+    pub mean_normalization: bool,
+    /// Let each patch try its left neighbour's flow as a starting point.
+    pub spatial_propagation: bool,
+    /// Fixed-point iterations of the variational refinement per level (0 = none).
+    pub variational_iters: usize,
+    /// Red-black SOR sweeps per fixed-point iteration.
+    pub sor_iters: usize,
+    /// SOR relaxation factor, `(0, 2)`.
+    pub sor_omega: f32,
+    /// Smoothness weight `α` of the refinement.
+    pub smoothness: f32,
+    /// Brightness-constancy weight `δ` of the refinement.
+    pub data_weight: f32,
+    /// Gauss-Newton iterations of the full-resolution polish: when `finest_level > 0`,
+    /// the upsampled flow goes through one more inverse search (without propagation),
+    /// densification and refinement at full resolution. 0 (with
+    /// `polish_variational_iters` 0) skips the polish.
+    pub polish_gd_iters: usize,
+    /// Fixed-point refinement iterations of the full-resolution polish.
+    pub polish_variational_iters: usize,
+}
+
+impl FlowParams {
+    /// Fastest: 8 px patches every 4 px, stops at quarter resolution, no refinement.
+    pub const ULTRAFAST: Self = Self {
+        patch_size_px: 8,
+        patch_stride_px: 4,
+        finest_level: 2,
+        coarsest_level: None,
+        gd_iters: 12,
+        gd_stop_px: 0.02,
+        mean_normalization: true,
+        spatial_propagation: true,
+        variational_iters: 0,
+        sor_iters: 4,
+        sor_omega: 1.6,
+        smoothness: 20.0,
+        data_weight: 5.0,
+        polish_gd_iters: 0,
+        polish_variational_iters: 0,
+    };
+
+    /// Down to half resolution with two refinement iterations per level.
+    pub const FAST: Self = Self {
+        finest_level: 1,
+        gd_iters: 16,
+        variational_iters: 2,
+        ..Self::ULTRAFAST
+    };
+
+    /// [`FlowParams::FAST`] plus a full-resolution polish (two Gauss-Newton steps per
+    /// patch, one refinement iteration): sharper motion boundaries.
+    pub const MEDIUM: Self = Self {
+        polish_gd_iters: 2,
+        polish_variational_iters: 1,
+        ..Self::FAST
+    };
+
+    /// The preset called `name` (`"ultrafast"`, `"fast"`, `"medium"`).
+    #[must_use]
+    pub fn preset(name: &str) -> Option<Self> {
+        match name {
+            "ultrafast" => Some(Self::ULTRAFAST),
+            "fast" => Some(Self::FAST),
+            "medium" => Some(Self::MEDIUM),
+            _ => None,
+        }
+    }
+
+    fn validate(&self) -> Result<(), FlowError> {
+        let p = self.patch_size_px;
+        if !(4..=32).contains(&p) || !p.is_multiple_of(4) {
+            return Err(FlowError::InvalidParams(
+                "patch_size_px must be a multiple of 4 in 4..=32",
+            ));
+        }
+        if !(1..=p).contains(&self.patch_stride_px) {
+            return Err(FlowError::InvalidParams(
+                "patch_stride_px must be in 1..=patch_size_px",
+            ));
+        }
+        if self.coarsest_level.is_some_and(|c| c < self.finest_level) {
+            return Err(FlowError::InvalidParams(
+                "coarsest_level must not be finer than finest_level",
+            ));
+        }
+        if !(self.gd_stop_px >= 0.0 && self.gd_stop_px.is_finite()) {
+            return Err(FlowError::InvalidParams(
+                "gd_stop_px must be finite and >= 0",
+            ));
+        }
+        if !(self.sor_omega > 0.0 && self.sor_omega < 2.0) {
+            return Err(FlowError::InvalidParams("sor_omega must be in (0, 2)"));
+        }
+        let ok = |v: f32| v >= 0.0 && v.is_finite();
+        if !(ok(self.smoothness) && ok(self.data_weight)) {
+            return Err(FlowError::InvalidParams(
+                "smoothness and data_weight must be finite and >= 0",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Border of the padded second image, pixels of each level.
+const PAD: usize = 16;
+
+/// The DIS estimator. Cheap to clone (the thread pool is shared).
+#[derive(Debug, Clone)]
+pub struct DisFlow {
+    params: FlowParams,
+    pool: Option<Arc<rayon::ThreadPool>>,
+    /// Buffers kept between calls (shared by clones).
+    buffers: Arc<Pool>,
+    flows: Arc<Pool<[f32; 2]>>,
+}
+
+impl DisFlow {
+    /// An estimator on rayon's global thread pool.
+    ///
+    /// # Errors
+    /// [`FlowError::InvalidParams`] if a field is out of its documented range.
+    pub fn new(params: FlowParams) -> Result<Self, FlowError> {
+        params.validate()?;
+        Ok(Self {
+            params,
+            pool: None,
+            buffers: Arc::default(),
+            flows: Arc::default(),
+        })
+    }
+
+    /// The same estimator on its own pool of `threads` threads (`0`: rayon's global pool).
+    ///
+    /// # Errors
+    /// [`FlowError::ThreadPool`] if the operating system refuses the threads.
+    pub fn with_threads(mut self, threads: usize) -> Result<Self, FlowError> {
+        self.pool = if threads == 0 {
+            None
+        } else {
+            Some(Arc::new(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()?,
+            ))
+        };
+        Ok(self)
+    }
+
+    /// The parameters.
+    #[must_use]
+    pub const fn params(&self) -> &FlowParams {
+        &self.params
+    }
+
+    /// Flow from `first` to `second`, grayscale on a 0-255 scale.
+    ///
+    /// # Errors
+    /// [`FlowError::SizeMismatch`], [`FlowError::Empty`], [`FlowError::TooSmall`] if an
+    /// image is smaller than one patch, [`FlowError::NonFinite`] for NaN or infinite
+    /// pixels.
+    pub fn estimate_gray(&self, first: &GrayF32, second: &GrayF32) -> Result<Flow, FlowError> {
+        check_pair(first.width, first.height, second.width, second.height)?;
+        let p = self.params.patch_size_px;
+        if first.width < p || first.height < p {
+            return Err(FlowError::TooSmall {
+                width: first.width,
+                height: first.height,
+                patch_px: p,
+            });
+        }
+        if !first.data.iter().chain(&second.data).all(|v| v.is_finite()) {
+            return Err(FlowError::NonFinite);
+        }
+        Ok(match &self.pool {
+            Some(pool) => pool.install(|| self.run(first, second)),
+            None => self.run(first, second),
+        })
+    }
+
+    /// Levels `(finest, coarsest)` for a `w x h` image (at least one patch fits at both).
+    fn levels(&self, w: usize, h: usize) -> (usize, usize) {
+        let p = self.params.patch_size_px;
+        let mut max_level = 0;
+        while (w >> (max_level + 1)) >= p && (h >> (max_level + 1)) >= p {
+            max_level += 1;
+        }
+        let auto = {
+            // A patch covers about a quarter of the longer side at the coarsest level.
+            let ratio = w.max(h) as f32 / (4 * p) as f32;
+            ratio.log2().round().max(0.0) as usize
+        };
+        let finest = self.params.finest_level.min(max_level);
+        let coarsest = self
+            .params
+            .coarsest_level
+            .unwrap_or(auto)
+            .clamp(finest, max_level);
+        (finest, coarsest)
+    }
+
+    fn run(&self, first: &GrayF32, second: &GrayF32) -> Flow {
+        let prm = &self.params;
+        let (w, h) = (first.width, first.height);
+        let (finest, coarsest) = self.levels(w, h);
+        let polish = finest > 0 && (prm.polish_gd_iters > 0 || prm.polish_variational_iters > 0);
+        // Level l of both pyramids, from level 1 on (level 0 is the input itself).
+        let mut p0: Vec<Plane> = Vec::with_capacity(coarsest);
+        let mut p1: Vec<Plane> = Vec::with_capacity(coarsest);
+        for l in 1..=coarsest {
+            let (a, b) = if l == 1 {
+                (
+                    downsample(&first.data, w, h),
+                    downsample(&second.data, w, h),
+                )
+            } else {
+                let (a, b) = (&p0[l - 2], &p1[l - 2]);
+                (downsample(&a.data, a.w, a.h), downsample(&b.data, b.w, b.h))
+            };
+            p0.push(a);
+            p1.push(b);
+        }
+        let level = |l: usize| -> (&[f32], &[f32], usize, usize) {
+            match l.checked_sub(1) {
+                None => (&first.data, &second.data, w, h),
+                Some(k) => (&p0[k].data, &p1[k].data, p0[k].w, p0[k].h),
+            }
+        };
+        let mut flow: Vec<[f32; 2]> = Vec::new();
+        let (mut fw, mut fh) = (0, 0);
+        for l in (finest..=coarsest).rev() {
+            let (i0, i1, lw, lh) = level(l);
+            let next = if l == coarsest {
+                self.flows.zeroed(lw * lh)
+            } else {
+                upsample_flow(&flow, fw, fh, lw, lh, 2, &self.flows)
+            };
+            self.flows.put(core::mem::replace(&mut flow, next));
+            (fw, fh) = (lw, lh);
+            let step = LevelStep {
+                gd_iters: prm.gd_iters,
+                propagation: prm.spatial_propagation,
+                variational_iters: prm.variational_iters,
+            };
+            self.level(i0, i1, lw, lh, &mut flow, &step);
+        }
+        if finest > 0 {
+            let full = upsample_flow(&flow, fw, fh, w, h, 1 << finest, &self.flows);
+            self.flows.put(core::mem::replace(&mut flow, full));
+        }
+        if polish {
+            let step = LevelStep {
+                gd_iters: prm.polish_gd_iters,
+                propagation: false,
+                variational_iters: prm.polish_variational_iters,
+            };
+            self.level(&first.data, &second.data, w, h, &mut flow, &step);
+        }
+        Flow {
+            width: w,
+            height: h,
+            data: flow,
+        }
+    }
+
+    /// One pyramid level: inverse search from `flow`, densification, refinement.
+    fn level(
+        &self,
+        i0: &[f32],
+        i1: &[f32],
+        w: usize,
+        h: usize,
+        flow: &mut Vec<[f32; 2]>,
+        step: &LevelStep,
+    ) {
+        let prm = &self.params;
+        let pool = &*self.buffers;
+        let p = prm.patch_size_px;
+        let (gx0, gy0) = gradients(i0, w, h, pool);
+        let i1p = Padded::new(i1, w, h, PAD, pool);
+        let t = Template {
+            w,
+            i0,
+            gx: &gx0,
+            gy: &gy0,
+        };
+        let xs = positions(w, p, prm.patch_stride_px);
+        let ys = positions(h, p, prm.patch_stride_px);
+        let search = SearchSettings {
+            size: p,
+            iters: step.gd_iters,
+            stop_px: prm.gd_stop_px,
+            mean_normalization: prm.mean_normalization,
+            propagation: step.propagation,
+        };
+        let patches = search_level(&t, &i1p, flow, &xs, &ys, &search);
+        let grid = Grid {
+            xs: &xs,
+            ys: &ys,
+            size: p,
+        };
+        let dense = densify(&t, &i1p, &patches, &grid, h, pool, &self.flows);
+        self.flows.put(core::mem::replace(flow, dense));
+        if step.variational_iters > 0 {
+            let (gx1, gy1) = gradients(i1, w, h, pool);
+            let gx1p = Padded::new(&gx1, w, h, PAD, pool);
+            let gy1p = Padded::new(&gy1, w, h, PAD, pool);
+            pool.put(gx1);
+            pool.put(gy1);
+            let inp = RefineInput {
+                w,
+                h,
+                i0,
+                gx0: &gx0,
+                gy0: &gy0,
+                i1: &i1p,
+                gx1: &gx1p,
+                gy1: &gy1p,
+            };
+            let settings = RefineSettings {
+                fixed_point_iters: step.variational_iters,
+                sor_iters: prm.sor_iters,
+                sor_omega: prm.sor_omega,
+                alpha: prm.smoothness,
+                delta: prm.data_weight,
+            };
+            refine(&inp, flow, &settings, pool);
+            pool.put(gx1p.data);
+            pool.put(gy1p.data);
+        }
+        pool.put(i1p.data);
+        pool.put(gx0);
+        pool.put(gy0);
+    }
+}
+
+/// What differs between the pyramid levels and the full-resolution polish.
+struct LevelStep {
+    gd_iters: usize,
+    propagation: bool,
+    variational_iters: usize,
+}
+
+impl FlowEstimator for DisFlow {
+    /// Converts both images to luma ([`GrayF32::from_rgb`]) and runs
+    /// [`DisFlow::estimate_gray`].
+    ///
+    /// # Errors
+    /// As [`DisFlow::estimate_gray`].
+    fn estimate(&self, first: RgbView<'_>, second: RgbView<'_>) -> Result<Flow, FlowError> {
+        check_pair(first.width, first.height, second.width, second.height)?;
+        self.estimate_gray(&GrayF32::from_rgb(first), &GrayF32::from_rgb(second))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::flow::testdata::{self, Scene};
+
+    fn medium() -> DisFlow {
+        DisFlow::new(FlowParams::MEDIUM).unwrap()
+    }
+
+    #[test]
+    fn subpixel_translation_is_recovered_on_the_interior() {
+        for (seed, shift) in [(1, [2.3, -1.6]), (2, [-5.7, 3.25]), (3, [0.4, 0.45])] {
+            let p = testdata::translated(640, 480, seed, shift);
+            let f = medium().estimate(p.first_view(), p.second_view()).unwrap();
+            let epe = f.mean_epe(&p.flow, Some(&p.interior)).unwrap();
+            assert!(epe < 0.5, "shift {shift:?}: EPE {epe}");
+        }
+    }
+
+    #[test]
+    fn three_degree_rotation_is_recovered_on_the_interior() {
+        for angle in [3f32, -3.0] {
+            let p = testdata::rotated(640, 480, 4, angle.to_radians());
+            let f = medium().estimate(p.first_view(), p.second_view()).unwrap();
+            let epe = f.mean_epe(&p.flow, Some(&p.interior)).unwrap();
+            assert!(epe < 0.5, "{angle} degrees: EPE {epe}");
+        }
+    }
+
+    #[test]
+    fn zero_motion_gives_zero_flow() {
+        let p = testdata::translated(320, 240, 5, [0.0, 0.0]);
+        for params in [FlowParams::ULTRAFAST, FlowParams::FAST, FlowParams::MEDIUM] {
+            let f = DisFlow::new(params)
+                .unwrap()
+                .estimate(p.first_view(), p.first_view())
+                .unwrap();
+            let max = f
+                .as_slice()
+                .iter()
+                .map(|v| v[0].hypot(v[1]))
+                .fold(0.0f32, f32::max);
+            assert!(max < 0.05, "{params:?}: max |flow| {max}");
+        }
+    }
+
+    #[test]
+    fn rigid_objects_are_tracked() {
+        let p = Scene::random_objects(640, 480, 11).render();
+        let f = medium().estimate(p.first_view(), p.second_view()).unwrap();
+        let epe = f.mean_epe(&p.flow, Some(&p.interior)).unwrap();
+        assert!(epe < 0.5, "EPE {epe}");
+    }
+
+    #[test]
+    fn thread_count_does_not_change_the_result() {
+        let p = Scene::random_objects(320, 240, 3).render();
+        let one = medium().with_threads(1).unwrap();
+        let three = medium().with_threads(3).unwrap();
+        let a = one.estimate(p.first_view(), p.second_view()).unwrap();
+        let b = three.estimate(p.first_view(), p.second_view()).unwrap();
+        let bits = |f: &Flow| -> Vec<u32> {
+            f.as_slice()
+                .iter()
+                .flat_map(|v| [v[0].to_bits(), v[1].to_bits()])
+                .collect()
+        };
+        assert_eq!(bits(&a), bits(&b));
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let est = medium();
+        let a = GrayF32::new(64, 48, vec![0.0; 64 * 48]).unwrap();
+        let b = GrayF32::new(48, 64, vec![0.0; 64 * 48]).unwrap();
+        assert!(matches!(
+            est.estimate_gray(&a, &b),
+            Err(FlowError::SizeMismatch {
+                first_width: 64,
+                second_width: 48,
+                ..
+            })
+        ));
+        let e = GrayF32::new(0, 5, Vec::new()).unwrap();
+        assert!(matches!(
+            est.estimate_gray(&e, &e),
+            Err(FlowError::Empty { .. })
+        ));
+        let tiny = GrayF32::new(7, 30, vec![0.0; 210]).unwrap();
+        assert!(matches!(
+            est.estimate_gray(&tiny, &tiny),
+            Err(FlowError::TooSmall { patch_px: 8, .. })
+        ));
+        let mut nan = a.clone();
+        nan.data[100] = f32::NAN;
+        assert!(matches!(
+            est.estimate_gray(&a, &nan),
+            Err(FlowError::NonFinite)
+        ));
+        let rgb = [0u8; 3 * 16 * 16];
+        let small = [0u8; 3 * 16 * 8];
+        assert!(matches!(
+            est.estimate(
+                RgbView::new(16, 16, &rgb).unwrap(),
+                RgbView::new(16, 8, &small).unwrap()
+            ),
+            Err(FlowError::SizeMismatch { .. })
+        ));
+    }
+
+    #[test]
+    fn smallest_images_work() {
+        // One patch, one level: flat images give zero flow, no panic.
+        let a = GrayF32::new(8, 8, vec![10.0; 64]).unwrap();
+        let f = medium().estimate_gray(&a, &a).unwrap();
+        assert!(f.as_slice().iter().all(|v| *v == [0.0, 0.0]));
+        let b = GrayF32::new(9, 17, (0..153).map(|i| (i * 7 % 13) as f32).collect()).unwrap();
+        assert!(medium().estimate_gray(&b, &b).is_ok());
+    }
+
+    #[test]
+    fn parameters_are_validated() {
+        let bad = [
+            FlowParams {
+                patch_size_px: 6,
+                ..FlowParams::MEDIUM
+            },
+            FlowParams {
+                patch_stride_px: 0,
+                ..FlowParams::MEDIUM
+            },
+            FlowParams {
+                patch_stride_px: 9,
+                ..FlowParams::MEDIUM
+            },
+            FlowParams {
+                finest_level: 2,
+                coarsest_level: Some(1),
+                ..FlowParams::MEDIUM
+            },
+            FlowParams {
+                sor_omega: 2.0,
+                ..FlowParams::MEDIUM
+            },
+            FlowParams {
+                smoothness: f32::NAN,
+                ..FlowParams::MEDIUM
+            },
+            FlowParams {
+                gd_stop_px: -1.0,
+                ..FlowParams::MEDIUM
+            },
+        ];
+        for p in bad {
+            assert!(
+                matches!(DisFlow::new(p), Err(FlowError::InvalidParams(_))),
+                "{p:?}"
+            );
+        }
+        for name in ["ultrafast", "fast", "medium"] {
+            assert!(DisFlow::new(FlowParams::preset(name).unwrap()).is_ok());
+        }
+        assert!(FlowParams::preset("slow").is_none());
+    }
+}

@@ -1,0 +1,386 @@
+//! Dense optical flow: the [`FlowEstimator`] trait, the flow field type, and a hand-written
+//! DIS-class estimator ([`DisFlow`]) that needs no model weights.
+//!
+//! # Contract
+//! - A flow maps the **first** image to the **second**: the pixel at `(x, y)` in `first`
+//!   shows the same scene point as `(x + dx, y + dy)` in `second`. Pixel centres sit at
+//!   integer coordinates; `dx`, `dy` are in pixels, `dy` grows downwards.
+//! - [`Flow`] stores `[dx, dy]` per pixel, row-major, `width · height` entries: the layout
+//!   of a Middlebury `.flo` file body ([`flo`] reads and writes those files).
+//! - Estimators never panic on caller input: two images of different size, an empty image,
+//!   an image smaller than one patch, non-finite pixels or bad parameters are a
+//!   [`FlowError`].
+//! - [`DisFlow`] is deterministic: the same images and parameters give bit-identical flow
+//!   whatever the number of threads (every parallel task writes its own output and no sum
+//!   crosses tasks).
+//!
+//! # Modules
+//! [`dis`] holds the estimator and its presets; [`testdata`] makes image pairs with exact
+//! ground truth; [`viz`] draws a flow with the Middlebury colour wheel; [`flo`] is the
+//! `.flo` file format.
+
+pub mod dis;
+pub mod flo;
+pub mod testdata;
+pub mod viz;
+
+mod densify;
+mod pool;
+mod pyramid;
+mod search;
+mod variational;
+
+pub use dis::{DisFlow, FlowParams};
+
+/// Why a flow call failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum FlowError {
+    /// The two images (or an estimate and its ground truth) differ in size.
+    #[error(
+        "sizes differ: first is {first_width}x{first_height}, second is \
+         {second_width}x{second_height}"
+    )]
+    SizeMismatch {
+        /// Width of the first operand, pixels.
+        first_width: usize,
+        /// Height of the first operand, pixels.
+        first_height: usize,
+        /// Width of the second operand, pixels.
+        second_width: usize,
+        /// Height of the second operand, pixels.
+        second_height: usize,
+    },
+    /// An image has no pixels.
+    #[error("image is empty ({width}x{height})")]
+    Empty {
+        /// Width, pixels.
+        width: usize,
+        /// Height, pixels.
+        height: usize,
+    },
+    /// A pixel buffer's length does not match its width and height.
+    #[error("buffer has {len} values, {width}x{height} needs {needed}")]
+    BadLength {
+        /// Width, pixels.
+        width: usize,
+        /// Height, pixels.
+        height: usize,
+        /// Values the buffer holds.
+        len: usize,
+        /// Values `width x height` needs (saturated on overflow).
+        needed: usize,
+    },
+    /// The image is smaller than one patch of the estimator.
+    #[error("image {width}x{height} is smaller than one {patch_px}x{patch_px} patch")]
+    TooSmall {
+        /// Width, pixels.
+        width: usize,
+        /// Height, pixels.
+        height: usize,
+        /// Patch side, pixels.
+        patch_px: usize,
+    },
+    /// A parameter is out of its documented range.
+    #[error("invalid flow parameters: {0}")]
+    InvalidParams(&'static str),
+    /// An image holds NaN or infinity.
+    #[error("image holds NaN or infinity")]
+    NonFinite,
+    /// A mask selects no pixel, so a mean over it does not exist.
+    #[error("the mask selects no pixel")]
+    EmptySelection,
+    /// The dedicated thread pool could not be built.
+    #[error("cannot build the flow thread pool")]
+    ThreadPool(#[from] rayon::ThreadPoolBuildError),
+}
+
+/// `width · height`, or `None` on overflow.
+fn area(width: usize, height: usize) -> Option<usize> {
+    width.checked_mul(height)
+}
+
+fn check_len(width: usize, height: usize, per_pixel: usize, len: usize) -> Result<(), FlowError> {
+    let needed = area(width, height).and_then(|n| n.checked_mul(per_pixel));
+    if needed == Some(len) {
+        Ok(())
+    } else {
+        Err(FlowError::BadLength {
+            width,
+            height,
+            len,
+            needed: needed.unwrap_or(usize::MAX),
+        })
+    }
+}
+
+/// A borrowed 8-bit RGB image, row-major, 3 bytes per pixel, no row padding: the layout of
+/// `image::RgbImage::as_raw` and of a decoded 8-bit RGB PNG.
+#[derive(Debug, Clone, Copy)]
+pub struct RgbView<'a> {
+    width: usize,
+    height: usize,
+    data: &'a [u8],
+}
+
+impl<'a> RgbView<'a> {
+    /// Wraps `data` as a `width x height` RGB image.
+    ///
+    /// # Errors
+    /// [`FlowError::BadLength`] if `data.len() != 3 · width · height`.
+    pub fn new(width: usize, height: usize, data: &'a [u8]) -> Result<Self, FlowError> {
+        check_len(width, height, 3, data.len())?;
+        Ok(Self {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// Width, pixels.
+    #[must_use]
+    pub const fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Height, pixels.
+    #[must_use]
+    pub const fn height(&self) -> usize {
+        self.height
+    }
+
+    /// The interleaved bytes.
+    #[must_use]
+    pub const fn as_bytes(&self) -> &'a [u8] {
+        self.data
+    }
+}
+
+/// A grayscale `f32` image, row-major, no padding. Estimators expect values on a 0-255
+/// scale (their thresholds are in those units).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GrayF32 {
+    width: usize,
+    height: usize,
+    data: Vec<f32>,
+}
+
+impl GrayF32 {
+    /// Wraps `data` as a `width x height` image.
+    ///
+    /// # Errors
+    /// [`FlowError::BadLength`] if `data.len() != width · height`.
+    pub fn new(width: usize, height: usize, data: Vec<f32>) -> Result<Self, FlowError> {
+        check_len(width, height, 1, data.len())?;
+        Ok(Self {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// Luma (ITU-R BT.601 weights: 0.299 R + 0.587 G + 0.114 B), 0-255.
+    #[must_use]
+    pub fn from_rgb(rgb: RgbView<'_>) -> Self {
+        let data = rgb
+            .data
+            .chunks_exact(3)
+            .map(|p| 0.299 * f32::from(p[0]) + 0.587 * f32::from(p[1]) + 0.114 * f32::from(p[2]))
+            .collect();
+        Self {
+            width: rgb.width,
+            height: rgb.height,
+            data,
+        }
+    }
+
+    /// Width, pixels.
+    #[must_use]
+    pub const fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Height, pixels.
+    #[must_use]
+    pub const fn height(&self) -> usize {
+        self.height
+    }
+
+    /// The pixel values, row-major.
+    #[must_use]
+    pub fn as_slice(&self) -> &[f32] {
+        &self.data
+    }
+}
+
+/// A dense flow field: `[dx, dy]` pixels per pixel of the first image, row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Flow {
+    width: usize,
+    height: usize,
+    data: Vec<[f32; 2]>,
+}
+
+impl Flow {
+    /// Wraps `data` as a `width x height` flow.
+    ///
+    /// # Errors
+    /// [`FlowError::BadLength`] if `data.len() != width · height`.
+    pub fn new(width: usize, height: usize, data: Vec<[f32; 2]>) -> Result<Self, FlowError> {
+        check_len(width, height, 1, data.len())?;
+        Ok(Self {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// Width, pixels.
+    #[must_use]
+    pub const fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Height, pixels.
+    #[must_use]
+    pub const fn height(&self) -> usize {
+        self.height
+    }
+
+    /// The `[dx, dy]` vectors, row-major.
+    #[must_use]
+    pub fn as_slice(&self) -> &[[f32; 2]] {
+        &self.data
+    }
+
+    /// The `[dx, dy]` vectors, row-major, by value.
+    #[must_use]
+    pub fn into_vec(self) -> Vec<[f32; 2]> {
+        self.data
+    }
+
+    /// The vector at `(x, y)`, or `None` outside the field.
+    #[must_use]
+    pub fn get(&self, x: usize, y: usize) -> Option<[f32; 2]> {
+        if x < self.width && y < self.height {
+            self.data.get(y * self.width + x).copied()
+        } else {
+            None
+        }
+    }
+
+    /// Mean endpoint error `|self - truth|` (pixels) over the pixels `mask` selects (all
+    /// pixels when `mask` is `None`). Summed in `f64` in row-major order.
+    ///
+    /// # Errors
+    /// [`FlowError::SizeMismatch`] if the fields differ in size, [`FlowError::BadLength`]
+    /// if `mask` has the wrong length, [`FlowError::EmptySelection`] if it selects nothing.
+    pub fn mean_epe(&self, truth: &Self, mask: Option<&[bool]>) -> Result<f64, FlowError> {
+        if (self.width, self.height) != (truth.width, truth.height) {
+            return Err(FlowError::SizeMismatch {
+                first_width: self.width,
+                first_height: self.height,
+                second_width: truth.width,
+                second_height: truth.height,
+            });
+        }
+        if let Some(m) = mask {
+            check_len(self.width, self.height, 1, m.len())?;
+        }
+        let mut sum = 0.0f64;
+        let mut count = 0usize;
+        for (i, (a, b)) in self.data.iter().zip(&truth.data).enumerate() {
+            if mask.is_none_or(|m| m[i]) {
+                sum += f64::from((a[0] - b[0]).hypot(a[1] - b[1]));
+                count += 1;
+            }
+        }
+        if count == 0 {
+            Err(FlowError::EmptySelection)
+        } else {
+            Ok(sum / count as f64)
+        }
+    }
+}
+
+/// Anything that turns two RGB images into a dense [`Flow`] from the first to the second:
+/// the built-in [`DisFlow`] today, a learned network (RAFT through ONNX) later.
+pub trait FlowEstimator {
+    /// Flow from `first` to `second`.
+    ///
+    /// # Errors
+    /// [`FlowError::SizeMismatch`] if the images differ in size, [`FlowError::Empty`] if
+    /// they have no pixels; implementations document any further cases.
+    fn estimate(&self, first: RgbView<'_>, second: RgbView<'_>) -> Result<Flow, FlowError>;
+}
+
+/// Checks that two images have one non-empty size.
+fn check_pair(w0: usize, h0: usize, w1: usize, h1: usize) -> Result<(), FlowError> {
+    if (w0, h0) != (w1, h1) {
+        return Err(FlowError::SizeMismatch {
+            first_width: w0,
+            first_height: h0,
+            second_width: w1,
+            second_height: h1,
+        });
+    }
+    if w0 == 0 || h0 == 0 {
+        return Err(FlowError::Empty {
+            width: w0,
+            height: h0,
+        });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn views_check_their_length() {
+        assert!(RgbView::new(2, 2, &[0; 12]).is_ok());
+        assert!(matches!(
+            RgbView::new(2, 2, &[0; 11]),
+            Err(FlowError::BadLength { needed: 12, .. })
+        ));
+        assert!(matches!(
+            RgbView::new(usize::MAX, 3, &[]),
+            Err(FlowError::BadLength {
+                needed: usize::MAX,
+                ..
+            })
+        ));
+        assert!(GrayF32::new(3, 1, vec![0.0; 2]).is_err());
+        assert!(Flow::new(1, 2, vec![[0.0; 2]; 2]).is_ok());
+    }
+
+    #[test]
+    fn luma_of_primaries() {
+        let rgb = [255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255];
+        let g = GrayF32::from_rgb(RgbView::new(4, 1, &rgb).unwrap());
+        let want = [76.245, 149.685, 29.07, 255.0];
+        for (a, b) in g.as_slice().iter().zip(want) {
+            assert!((a - b).abs() < 1e-3, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn mean_epe_over_mask_and_errors() {
+        let a = Flow::new(2, 1, vec![[3.0, 4.0], [0.0, 0.0]]).unwrap();
+        let b = Flow::new(2, 1, vec![[0.0; 2]; 2]).unwrap();
+        assert!((a.mean_epe(&b, None).unwrap() - 2.5).abs() < 1e-9);
+        assert!((a.mean_epe(&b, Some(&[true, false])).unwrap() - 5.0).abs() < 1e-9);
+        assert!(matches!(
+            a.mean_epe(&b, Some(&[false, false])),
+            Err(FlowError::EmptySelection)
+        ));
+        let c = Flow::new(1, 2, vec![[0.0; 2]; 2]).unwrap();
+        assert!(matches!(
+            a.mean_epe(&c, None),
+            Err(FlowError::SizeMismatch { .. })
+        ));
+        assert_eq!(a.get(1, 0), Some([0.0, 0.0]));
+        assert_eq!(a.get(2, 0), None);
+    }
+}

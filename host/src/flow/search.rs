@@ -1,0 +1,384 @@
+//! Patch inverse search (DIS, Kroeger et al. 2016, section 2.1): on one pyramid level, each
+//! patch of a regular grid on the first image finds the translation that best matches the
+//! second image, by inverse-compositional Gauss-Newton on the patch SSD.
+//!
+//! Inverse compositional: the Jacobian and the 2x2 Hessian come from the *first* image's
+//! gradients, so they are computed once per patch; each iteration only warps the second
+//! image. The warp is a pure translation, so one set of bilinear weights serves the whole
+//! patch. With mean normalisation the SSD is taken after subtracting each patch's mean
+//! (robust to brightness change). Iterations stop early once a step is shorter than
+//! `stop_px`; the patch keeps the lowest-SSD estimate it saw (the initial guess included).
+//!
+//! Patch rows are independent tasks; within a row, a patch may start from its left
+//! neighbour's result (spatial propagation) when that matches better than the coarser
+//! level's flow. The result does not depend on the thread count.
+
+use super::pyramid::Padded;
+use rayon::prelude::*;
+
+/// Top-left corners of patches of side `size` every `stride` pixels along a side of
+/// `len >= size` pixels; the last patch is moved in so that it ends at the border.
+pub(crate) fn positions(len: usize, size: usize, stride: usize) -> Vec<usize> {
+    let last = len - size;
+    let mut v: Vec<usize> = (0..=last).step_by(stride).collect();
+    if v.last() != Some(&last) {
+        v.push(last);
+    }
+    v
+}
+
+/// The patch grid of one level: top-left corners along x and y, and the patch side.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Grid<'a> {
+    pub xs: &'a [usize],
+    pub ys: &'a [usize],
+    pub size: usize,
+}
+
+/// One patch's result: its flow and the mean of `second - first` over the patch at that
+/// flow (the brightness offset mean normalisation removes; zero without it).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct PatchFlow {
+    pub u: f32,
+    pub v: f32,
+    pub offset: f32,
+}
+
+/// Settings of one level's search.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SearchSettings {
+    /// Patch side, pixels; a multiple of 4.
+    pub size: usize,
+    pub iters: usize,
+    pub stop_px: f32,
+    pub mean_normalization: bool,
+    pub propagation: bool,
+}
+
+/// The first image of a level with its gradients (unpadded, row-major, `w x h`).
+pub(crate) struct Template<'a> {
+    pub w: usize,
+    pub i0: &'a [f32],
+    pub gx: &'a [f32],
+    pub gy: &'a [f32],
+}
+
+/// Sums over one patch at one displacement.
+#[derive(Debug, Clone, Copy)]
+struct Stats {
+    r: f32,
+    gxr: f32,
+    gyr: f32,
+    rr: f32,
+}
+
+/// Largest patch side the search supports (`FlowParams` validates against it).
+pub(crate) const MAX_PATCH: usize = 32;
+
+/// Sums over the patch. Column-wise accumulators keep every loop element-wise (so it
+/// vectorises) and the summation order fixed.
+#[inline]
+fn stats(
+    t: &Template<'_>,
+    i1: &Padded,
+    px: usize,
+    py: usize,
+    u: f32,
+    v: f32,
+    size: usize,
+) -> Stats {
+    let size = size.min(MAX_PATCH);
+    let tap = i1.tap(px as f32 + u, py as f32 + v, size);
+    let (w00, w01, w10, w11) = (tap.w00, tap.w01, tap.w10, tap.w11);
+    let mut r = [0.0f32; MAX_PATCH];
+    let mut gxr = [0.0f32; MAX_PATCH];
+    let mut gyr = [0.0f32; MAX_PATCH];
+    let mut rr = [0.0f32; MAX_PATCH];
+    let (r, gxr, gyr, rr) = (
+        &mut r[..size],
+        &mut gxr[..size],
+        &mut gyr[..size],
+        &mut rr[..size],
+    );
+    for row in 0..size {
+        let a = &i1.data[tap.index + row * i1.stride..][..size + 1];
+        let b = &i1.data[tap.index + (row + 1) * i1.stride..][..size + 1];
+        let (a0, a1, b0, b1) = (&a[..size], &a[1..], &b[..size], &b[1..]);
+        let off = (py + row) * t.w + px;
+        let (ti, gx, gy) = (
+            &t.i0[off..][..size],
+            &t.gx[off..][..size],
+            &t.gy[off..][..size],
+        );
+        for k in 0..size {
+            let d = w00 * a0[k] + w01 * a1[k] + w10 * b0[k] + w11 * b1[k] - ti[k];
+            r[k] += d;
+            gxr[k] += gx[k] * d;
+            gyr[k] += gy[k] * d;
+            rr[k] += d * d;
+        }
+    }
+    let sum = |s: &[f32]| s.iter().sum::<f32>();
+    Stats {
+        r: sum(r),
+        gxr: sum(gxr),
+        gyr: sum(gyr),
+        rr: sum(rr),
+    }
+}
+
+/// Per-patch constants: the Gauss-Newton normal matrix inverse and the mean gradient.
+#[derive(Debug, Clone, Copy)]
+struct PatchModel {
+    inv: [f32; 3],
+    mgx: f32,
+    mgy: f32,
+    n: f32,
+}
+
+impl PatchModel {
+    fn new(t: &Template<'_>, px: usize, py: usize, size: usize, mean_norm: bool) -> Self {
+        // Column-wise sums (element-wise loops vectorise), then a fixed-order total.
+        let size = size.min(MAX_PATCH);
+        let mut cols = [[0.0f32; MAX_PATCH]; 5];
+        for row in 0..size {
+            let off = (py + row) * t.w + px;
+            let (gx, gy) = (&t.gx[off..][..size], &t.gy[off..][..size]);
+            let [cxx, cxy, cyy, cx, cy] = &mut cols;
+            let (cxx, cxy, cyy) = (&mut cxx[..size], &mut cxy[..size], &mut cyy[..size]);
+            let (cx, cy) = (&mut cx[..size], &mut cy[..size]);
+            for k in 0..size {
+                cxx[k] += gx[k] * gx[k];
+                cxy[k] += gx[k] * gy[k];
+                cyy[k] += gy[k] * gy[k];
+                cx[k] += gx[k];
+                cy[k] += gy[k];
+            }
+        }
+        let [sxx, sxy, syy, sx, sy] = cols.map(|c| c[..size].iter().sum::<f32>());
+        let n = (size * size) as f32;
+        let (mgx, mgy) = if mean_norm {
+            (sx / n, sy / n)
+        } else {
+            (0.0, 0.0)
+        };
+        let hxx = sxx - n * mgx * mgx;
+        let hxy = sxy - n * mgx * mgy;
+        let hyy = syy - n * mgy * mgy;
+        // Tikhonov term (gradient units squared per pixel): keeps flat patches still.
+        let reg = 1e-2 * n;
+        let (a, b, c) = (hxx + reg, hxy, hyy + reg);
+        let det = a * c - b * b;
+        let inv = if det > 0.0 && det.is_finite() {
+            [c / det, -b / det, a / det]
+        } else {
+            [0.0; 3]
+        };
+        Self { inv, mgx, mgy, n }
+    }
+
+    /// SSD at a displacement from its stats (mean-normalised when the model is).
+    fn ssd(&self, s: &Stats, mean_norm: bool) -> f32 {
+        if mean_norm {
+            s.rr - s.r * s.r / self.n
+        } else {
+            s.rr
+        }
+    }
+
+    /// The Gauss-Newton step (to subtract from the displacement).
+    fn step(&self, s: &Stats, mean_norm: bool) -> (f32, f32) {
+        let (bx, by) = if mean_norm {
+            (s.gxr - self.mgx * s.r, s.gyr - self.mgy * s.r)
+        } else {
+            (s.gxr, s.gyr)
+        };
+        (
+            self.inv[0] * bx + self.inv[1] * by,
+            self.inv[1] * bx + self.inv[2] * by,
+        )
+    }
+}
+
+/// Everything one patch search needs besides its position and start.
+struct Ctx<'a> {
+    t: &'a Template<'a>,
+    i1: &'a Padded,
+    s: &'a SearchSettings,
+}
+
+/// A patch's current estimate and its SSD there.
+#[derive(Debug, Clone, Copy)]
+struct State {
+    u: f32,
+    v: f32,
+    ssd: f32,
+    /// Sum of residuals at `(u, v)` (for the brightness offset).
+    r: f32,
+}
+
+impl Ctx<'_> {
+    fn eval(&self, m: &PatchModel, px: usize, py: usize, u: f32, v: f32) -> (State, Stats) {
+        let st = stats(self.t, self.i1, px, py, u, v, self.s.size);
+        let ssd = m.ssd(&st, self.s.mean_normalization);
+        (State { u, v, ssd, r: st.r }, st)
+    }
+
+    /// Gauss-Newton from `start` (with its stats); returns the lowest-SSD point visited.
+    fn descend(&self, m: &PatchModel, px: usize, py: usize, start: State, st: Stats) -> State {
+        let mn = self.s.mean_normalization;
+        let stop2 = self.s.stop_px * self.s.stop_px;
+        let (mut best, mut st, mut u, mut v) = (start, st, start.u, start.v);
+        for _ in 0..self.s.iters {
+            let (du, dv) = m.step(&st, mn);
+            u -= du;
+            v -= dv;
+            let (cur, next) = self.eval(m, px, py, u, v);
+            st = next;
+            if cur.ssd < best.ssd {
+                best = cur;
+            }
+            if du * du + dv * dv < stop2 {
+                break;
+            }
+        }
+        best
+    }
+
+    /// Tries a neighbour's flow: if it matches better, the patch restarts from it.
+    fn propagate(&self, m: &PatchModel, px: usize, py: usize, cur: State, cand: State) -> State {
+        if cand.u == cur.u && cand.v == cur.v {
+            return cur;
+        }
+        let (c, st) = self.eval(m, px, py, cand.u, cand.v);
+        if c.ssd < cur.ssd {
+            let d = self.descend(m, px, py, c, st);
+            if d.ssd < cur.ssd {
+                return d;
+            }
+        }
+        cur
+    }
+}
+
+/// Searches every patch of one level. `init` is the dense flow (`w x h`) the search starts
+/// from (the coarser level's result, zero at the coarsest). Returns one [`PatchFlow`] per
+/// grid patch, row-major over `(ys, xs)`.
+///
+/// Each patch first descends from `init` at its centre, trying its left neighbour's result
+/// as well when propagation is on. With propagation, three more passes follow (downwards
+/// along columns, leftwards along rows, upwards along columns): a patch whose neighbour's
+/// flow matches better restarts from it. Each pass runs its lines in parallel and each
+/// line in order, so the result does not depend on the thread count.
+pub(crate) fn search_level(
+    t: &Template<'_>,
+    i1: &Padded,
+    init: &[[f32; 2]],
+    xs: &[usize],
+    ys: &[usize],
+    s: &SearchSettings,
+) -> Vec<PatchFlow> {
+    let (nx, ny) = (xs.len(), ys.len());
+    let size = s.size;
+    let mn = s.mean_normalization;
+    let ctx = Ctx { t, i1, s };
+    let models: Vec<PatchModel> = ys
+        .iter()
+        .flat_map(|&py| xs.iter().map(move |&px| (px, py)))
+        .map(|(px, py)| PatchModel::new(t, px, py, size, mn))
+        .collect();
+    let mut state = vec![
+        State {
+            u: 0.0,
+            v: 0.0,
+            ssd: 0.0,
+            r: 0.0,
+        };
+        nx * ny
+    ];
+    // Pass 1: rows, left to right, from the coarser level's flow.
+    state
+        .par_chunks_mut(nx)
+        .zip(models.par_chunks(nx))
+        .zip(ys.par_iter())
+        .for_each(|((row, ms), &py)| {
+            let mut left: Option<State> = None;
+            for ((o, m), &px) in row.iter_mut().zip(ms).zip(xs) {
+                let c = init[(py + size / 2) * t.w + px + size / 2];
+                let (start, st) = ctx.eval(m, px, py, c[0], c[1]);
+                let mut cur = ctx.descend(m, px, py, start, st);
+                if let Some(l) = left.filter(|_| s.propagation) {
+                    cur = ctx.propagate(m, px, py, cur, l);
+                }
+                *o = cur;
+                left = Some(cur);
+            }
+        });
+    if s.propagation {
+        // Pass 2 and 4 work on columns: transpose, sweep, transpose back.
+        let mut cols = transpose(&state, nx, ny);
+        let models_t = transpose(&models, nx, ny);
+        sweep_lines(&ctx, &mut cols, &models_t, ny, |j, i| (xs[j], ys[i]), false);
+        state = transpose(&cols, ny, nx);
+        sweep_lines(&ctx, &mut state, &models, nx, |j, i| (xs[i], ys[j]), true);
+        cols = transpose(&state, nx, ny);
+        sweep_lines(&ctx, &mut cols, &models_t, ny, |j, i| (xs[j], ys[i]), true);
+        state = transpose(&cols, ny, nx);
+    }
+    state
+        .iter()
+        .zip(&models)
+        .map(|(st, m)| PatchFlow {
+            u: st.u,
+            v: st.v,
+            offset: if mn { st.r / m.n } else { 0.0 },
+        })
+        .collect()
+}
+
+/// One propagation pass over lines of `len` patches (line `j`, position `i` is the patch
+/// at `pos(j, i)`), forwards or backwards along each line, lines in parallel.
+fn sweep_lines(
+    ctx: &Ctx<'_>,
+    state: &mut [State],
+    models: &[PatchModel],
+    len: usize,
+    pos: impl Fn(usize, usize) -> (usize, usize) + Sync,
+    backwards: bool,
+) {
+    state
+        .par_chunks_mut(len)
+        .zip(models.par_chunks(len))
+        .enumerate()
+        .for_each(|(j, (line, ms))| {
+            let order: Box<dyn Iterator<Item = usize>> = if backwards {
+                Box::new((0..len.saturating_sub(1)).rev())
+            } else {
+                Box::new(1..len)
+            };
+            for i in order {
+                let prev = if backwards { line[i + 1] } else { line[i - 1] };
+                let (px, py) = pos(j, i);
+                line[i] = ctx.propagate(&ms[i], px, py, line[i], prev);
+            }
+        });
+}
+
+/// `rows x cols` row-major into `cols x rows` row-major.
+fn transpose<T: Copy>(a: &[T], cols: usize, rows: usize) -> Vec<T> {
+    (0..cols)
+        .flat_map(|c| (0..rows).map(move |r| a[r * cols + c]))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn positions_cover_the_side() {
+        assert_eq!(positions(20, 8, 4), vec![0, 4, 8, 12]);
+        assert_eq!(positions(21, 8, 4), vec![0, 4, 8, 12, 13]);
+        assert_eq!(positions(8, 8, 3), vec![0]);
+    }
+}

@@ -1,0 +1,525 @@
+//! Variational refinement (DIS, section 2.3): lowers
+//!
+//! ```text
+//! E(du) = Σ_x  δ·Ψ((Iz + Ix·du + Iy·dv)²)  +  α·Ψ(|∇(u + du)|² + |∇(v + dv)|²),
+//! Ψ(s²) = √(s² + ε²)
+//! ```
+//!
+//! around the current flow `u`. Each of `fixed_point_iters` iterations adds the increment
+//! found so far to `u`, warps the second image by `u` (temporal difference `Iz`, gradients
+//! `Ix`, `Iy` averaged over both images), freezes the robust weights (lagged
+//! diffusivity) and runs `sor_iters` red-black SOR sweeps on the resulting linear system
+//! for the new increment. Pixels warped outside the second image keep only the smoothness
+//! term. The result is `u + du`.
+//!
+//! Red-black order makes every half-sweep a set of independent pixel updates, so rows run
+//! in parallel and the result does not depend on the thread count. To keep those updates
+//! contiguous (and vectorisable), each colour (`(x + y) mod 2`) has its own planes: pixel
+//! `(x, y)` lives at slot `x / 2 + 1` of row `y + 1` of colour `(x + y) mod 2`, with zero
+//! guard rows and slots on every side. With `s = (x + y) mod 2` and `k = x / 2`, the four
+//! neighbours lie in the other colour at slots `k + s` (left) and `k + s + 1` (right) of
+//! the same row and slot `k + 1` of the rows above and below.
+
+use super::pool::Pool;
+use super::pyramid::Padded;
+use rayon::prelude::*;
+
+/// Settings of the refinement.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RefineSettings {
+    pub fixed_point_iters: usize,
+    pub sor_iters: usize,
+    pub sor_omega: f32,
+    pub alpha: f32,
+    pub delta: f32,
+}
+
+/// Charbonnier epsilon of the data term, intensity units (0-255 scale).
+const EPS_DATA: f32 = 1.0;
+/// Charbonnier epsilon of the smoothness term, pixels per pixel.
+const EPS_SMOOTH: f32 = 0.05;
+
+/// The level's images the refinement reads.
+pub(crate) struct RefineInput<'a> {
+    pub w: usize,
+    pub h: usize,
+    pub i0: &'a [f32],
+    pub gx0: &'a [f32],
+    pub gy0: &'a [f32],
+    /// The second image and its gradients, padded alike (one tap serves all three).
+    pub i1: &'a Padded,
+    pub gx1: &'a Padded,
+    pub gy1: &'a Padded,
+}
+
+/// Geometry of the colour planes.
+#[derive(Debug, Clone, Copy)]
+struct Split {
+    w: usize,
+    h: usize,
+    /// Slots per plane row: `ceil(w / 2)` plus two guards.
+    ps: usize,
+}
+
+impl Split {
+    fn new(w: usize, h: usize) -> Self {
+        Self {
+            w,
+            h,
+            ps: w.div_ceil(2) + 2,
+        }
+    }
+
+    /// Parity `s` of colour `c`'s row `y`: its pixels sit at `x = 2k + s`.
+    fn parity(c: usize, y: usize) -> usize {
+        (c + y) & 1
+    }
+
+    /// Pixels of colour `c` in row `y`.
+    fn count(&self, c: usize, y: usize) -> usize {
+        (self.w + 1 - Self::parity(c, y)) / 2
+    }
+}
+
+/// `n` planes of one colour, row-interleaved: image row `y` holds plane `j` at
+/// `data[((y + 1)·n + j)·ps ..][.. ps]`, so one contiguous chunk has every plane of a row.
+#[derive(Debug, Clone)]
+struct Planes {
+    ps: usize,
+    n: usize,
+    data: Vec<f32>,
+}
+
+impl Planes {
+    fn new(sp: &Split, n: usize, pool: &Pool) -> Self {
+        Self {
+            ps: sp.ps,
+            n,
+            data: pool.zeroed(sp.ps * n * (sp.h + 2)),
+        }
+    }
+
+    /// Plane `j` of buffer row `yy` (`yy = y + 1`; 0 and `h + 1` are the guard rows).
+    fn row(&self, yy: usize, j: usize) -> &[f32] {
+        &self.data[(yy * self.n + j) * self.ps..][..self.ps]
+    }
+
+    /// `n` values of plane `j` of buffer row `yy` from slot `start`.
+    fn span(&self, yy: usize, j: usize, start: usize, n: usize) -> &[f32] {
+        &self.row(yy, j)[start..][..n]
+    }
+
+    /// The chunks of image rows `0..h` (guard rows excluded), in parallel.
+    fn rows_mut(&mut self, h: usize) -> rayon::slice::ChunksMut<'_, f32> {
+        let c = self.n * self.ps;
+        self.data[c..(h + 1) * c].par_chunks_mut(c)
+    }
+}
+
+/// Refines `flow` (`w x h`, row-major) in place.
+pub(crate) fn refine(
+    inp: &RefineInput<'_>,
+    flow: &mut [[f32; 2]],
+    s: &RefineSettings,
+    pool: &Pool,
+) {
+    if s.fixed_point_iters == 0 {
+        return;
+    }
+    let sp = Split::new(inp.w, inp.h);
+    // Per colour: flow (u, v), warped derivatives (ix, iy, iz), increment (du, dv),
+    // smoothness weights to the right and lower neighbour (wr, wd), and the frozen system
+    // (a12, 1/a11, 1/a22, b1, b2).
+    let mut uv = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
+    let mut deriv = [Planes::new(&sp, 3, pool), Planes::new(&sp, 3, pool)];
+    let mut duv = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
+    let mut wts = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
+    let mut sys = [Planes::new(&sp, 5, pool), Planes::new(&sp, 5, pool)];
+    for (c, uvc) in uv.iter_mut().enumerate() {
+        scatter(&sp, c, flow, uvc);
+    }
+    for _ in 0..s.fixed_point_iters {
+        for (c, ((uvc, dc), derc)) in uv
+            .iter_mut()
+            .zip(duv.iter_mut())
+            .zip(deriv.iter_mut())
+            .enumerate()
+        {
+            warp(&sp, c, inp, uvc, dc, derc);
+        }
+        for (c, wc) in wts.iter_mut().enumerate() {
+            smoothness(&sp, c, &uv, &duv, wc, s.alpha);
+        }
+        for (c, sc) in sys.iter_mut().enumerate() {
+            system(&sp, c, &uv, &deriv[c], &duv[c], &wts, sc, s.delta);
+        }
+        for _ in 0..s.sor_iters {
+            for (c, sc) in sys.iter().enumerate() {
+                let [d0, d1] = &mut duv;
+                let (mine, other) = if c == 0 { (d0, &*d1) } else { (d1, &*d0) };
+                sor_half_sweep(&sp, c, sc, &wts, mine, other, s.sor_omega);
+            }
+        }
+    }
+    gather(&sp, &uv, &duv, flow);
+    for p in [uv, deriv, duv, wts, sys].into_iter().flatten() {
+        pool.put(p.data);
+    }
+}
+
+/// Row-major flow into colour `c`'s `(u, v)` planes.
+fn scatter(sp: &Split, c: usize, flow: &[[f32; 2]], uv: &mut Planes) {
+    let ps = sp.ps;
+    uv.rows_mut(sp.h).enumerate().for_each(|(y, chunk)| {
+        let s = Split::parity(c, y);
+        let n = sp.count(c, y);
+        let (ur, vr) = chunk.split_at_mut(ps);
+        let src = &flow[y * sp.w..][..sp.w];
+        for k in 0..n {
+            let f = src[2 * k + s];
+            ur[k + 1] = f[0];
+            vr[k + 1] = f[1];
+        }
+    });
+}
+
+/// Moves colour `c`'s increment into its flow (`u += du`, `du = 0`) and warps the second
+/// image by the result: `Iz = I1(x + u) − I0(x)`, `Ix`, `Iy` averaged over both images.
+fn warp(
+    sp: &Split,
+    c: usize,
+    inp: &RefineInput<'_>,
+    uv: &mut Planes,
+    duv: &mut Planes,
+    deriv: &mut Planes,
+) {
+    let ps = sp.ps;
+    let (wmax, hmax) = ((sp.w - 1) as f32, (sp.h - 1) as f32);
+    let (pad, stride) = (inp.i1.pad as f32, inp.i1.stride);
+    uv.rows_mut(sp.h)
+        .zip(duv.rows_mut(sp.h))
+        .zip(deriv.rows_mut(sp.h))
+        .enumerate()
+        .for_each(|(y, ((uvr, dr), der))| {
+            let s = Split::parity(c, y);
+            let n = sp.count(c, y);
+            let (ur, vr) = uvr.split_at_mut(ps);
+            let (dur, dvr) = dr.split_at_mut(ps);
+            let (ixr, rest) = der.split_at_mut(ps);
+            let (iyr, izr) = rest.split_at_mut(ps);
+            let (i0, gx0, gy0) = (
+                &inp.i0[y * sp.w..][..sp.w],
+                &inp.gx0[y * sp.w..][..sp.w],
+                &inp.gy0[y * sp.w..][..sp.w],
+            );
+            for k in 1..=n {
+                ur[k] += dur[k];
+                vr[k] += dvr[k];
+                dur[k] = 0.0;
+                dvr[k] = 0.0;
+                let x = 2 * (k - 1) + s;
+                let (xw, yw) = (x as f32 + ur[k], y as f32 + vr[k]);
+                let mut d = [0.0f32; 3];
+                if (0.0..=wmax).contains(&xw) && (0.0..=hmax).contains(&yw) {
+                    // Inside the image, so every tap is inside the padded buffers and the
+                    // (non-negative) positions truncate to their floor.
+                    // (`i32` conversions are single instructions; `usize` ones are not.)
+                    let (px, py) = (xw + pad, yw + pad);
+                    let (ix, iy) = (px as i32, py as i32);
+                    let (ax, ay) = (px - ix as f32, py - iy as f32);
+                    let at = iy.unsigned_abs() as usize * stride + ix.unsigned_abs() as usize;
+                    let tap = |p: &Padded| {
+                        p.data.get(at..at + stride + 2).map_or(0.0, |q| {
+                            let top = q[0] + ax * (q[1] - q[0]);
+                            let bottom = q[stride] + ax * (q[stride + 1] - q[stride]);
+                            top + ay * (bottom - top)
+                        })
+                    };
+                    d = [
+                        0.5 * (tap(inp.gx1) + gx0[x]),
+                        0.5 * (tap(inp.gy1) + gy0[x]),
+                        tap(inp.i1) - i0[x],
+                    ];
+                }
+                // Out of view: zero derivatives make the data term vanish.
+                [ixr[k], iyr[k], izr[k]] = d;
+            }
+        });
+}
+
+/// `α / √(|∇(u+du)|² + |∇(v+dv)|² + ε²)` for colour `c` (forward differences), stored as
+/// the weight of the edge to the right and to the lower neighbour (0 across the border).
+fn smoothness(
+    sp: &Split,
+    c: usize,
+    uv: &[Planes; 2],
+    duv: &[Planes; 2],
+    out: &mut Planes,
+    alpha: f32,
+) {
+    let ps = sp.ps;
+    let (uvm, uvo, dm, dov) = (&uv[c], &uv[1 - c], &duv[c], &duv[1 - c]);
+    let eps2 = EPS_SMOOTH * EPS_SMOOTH;
+    out.rows_mut(sp.h).enumerate().for_each(|(y, chunk)| {
+        let s = Split::parity(c, y);
+        let n = sp.count(c, y);
+        let yy = y + 1;
+        let (um, vm) = (&uvm.row(yy, 0)[1..][..n], &uvm.row(yy, 1)[1..][..n]);
+        let (dum, dvm) = (&dm.row(yy, 0)[1..][..n], &dm.row(yy, 1)[1..][..n]);
+        let (ur, vr) = (&uvo.row(yy, 0)[s + 1..][..n], &uvo.row(yy, 1)[s + 1..][..n]);
+        let (dur, dvr) = (&dov.row(yy, 0)[s + 1..][..n], &dov.row(yy, 1)[s + 1..][..n]);
+        let (ud, vd) = (&uvo.row(yy + 1, 0)[1..][..n], &uvo.row(yy + 1, 1)[1..][..n]);
+        let (dud, dvd) = (&dov.row(yy + 1, 0)[1..][..n], &dov.row(yy + 1, 1)[1..][..n]);
+        let (wr, wd) = chunk.split_at_mut(ps);
+        let (wr, wd) = (&mut wr[1..][..n], &mut wd[1..][..n]);
+        for k in 0..n {
+            let (pu, pv) = (um[k] + dum[k], vm[k] + dvm[k]);
+            let ux = ur[k] + dur[k] - pu;
+            let vx = vr[k] + dvr[k] - pv;
+            let uy = ud[k] + dud[k] - pu;
+            let vy = vd[k] + dvd[k] - pv;
+            let g = alpha / (ux * ux + vx * vx + uy * uy + vy * vy + eps2).sqrt();
+            wr[k] = g;
+            wd[k] = g;
+        }
+        // Across the right and bottom borders there is no edge. (The differences read
+        // there came from guard slots and only affected these zeroed weights.)
+        if n > 0 && 2 * (n - 1) + s + 1 == sp.w {
+            let last_g = {
+                let k = n - 1;
+                let (pu, pv) = (um[k] + dum[k], vm[k] + dvm[k]);
+                let uy = ud[k] + dud[k] - pu;
+                let vy = vd[k] + dvd[k] - pv;
+                alpha / (uy * uy + vy * vy + eps2).sqrt()
+            };
+            wr[n - 1] = 0.0;
+            wd[n - 1] = last_g;
+        }
+        if y + 1 == sp.h {
+            for k in 0..n {
+                let (pu, pv) = (um[k] + dum[k], vm[k] + dvm[k]);
+                let ux = ur[k] + dur[k] - pu;
+                let vx = vr[k] + dvr[k] - pv;
+                wd[k] = 0.0;
+                if wr[k] != 0.0 {
+                    wr[k] = alpha / (ux * ux + vx * vx + eps2).sqrt();
+                }
+            }
+        }
+    });
+}
+
+/// Freezes the system of colour `c` at the current increment.
+#[allow(clippy::too_many_arguments)]
+fn system(
+    sp: &Split,
+    c: usize,
+    uv: &[Planes; 2],
+    deriv: &Planes,
+    duv: &Planes,
+    wts: &[Planes; 2],
+    out: &mut Planes,
+    delta: f32,
+) {
+    let ps = sp.ps;
+    let (uvm, uvo, wm, wo) = (&uv[c], &uv[1 - c], &wts[c], &wts[1 - c]);
+    let eps2 = EPS_DATA * EPS_DATA;
+    out.rows_mut(sp.h).enumerate().for_each(|(y, chunk)| {
+        let s = Split::parity(c, y);
+        let n = sp.count(c, y);
+        let yy = y + 1;
+        let (ix, iy, iz) = (
+            deriv.span(yy, 0, 1, n),
+            deriv.span(yy, 1, 1, n),
+            deriv.span(yy, 2, 1, n),
+        );
+        let (du, dv) = (duv.span(yy, 0, 1, n), duv.span(yy, 1, 1, n));
+        let (um, vm) = (uvm.span(yy, 0, 1, n), uvm.span(yy, 1, 1, n));
+        let (wr, wd) = (wm.span(yy, 0, 1, n), wm.span(yy, 1, 1, n));
+        let wl = &wo.row(yy, 0)[s..][..n];
+        let wu = &wo.row(yy - 1, 1)[1..][..n];
+        let (ul, vl) = (&uvo.row(yy, 0)[s..][..n], &uvo.row(yy, 1)[s..][..n]);
+        let (ur, vr) = (&uvo.row(yy, 0)[s + 1..][..n], &uvo.row(yy, 1)[s + 1..][..n]);
+        let (uu, vu) = (&uvo.row(yy - 1, 0)[1..][..n], &uvo.row(yy - 1, 1)[1..][..n]);
+        let (ud, vd) = (&uvo.row(yy + 1, 0)[1..][..n], &uvo.row(yy + 1, 1)[1..][..n]);
+        let mut parts = chunk.chunks_exact_mut(ps).map(|r| &mut r[1..][..n]);
+        let (Some(a12), Some(inv11), Some(inv22), Some(b1), Some(b2)) = (
+            parts.next(),
+            parts.next(),
+            parts.next(),
+            parts.next(),
+            parts.next(),
+        ) else {
+            return;
+        };
+        for k in 0..n {
+            let r = iz[k] + ix[k] * du[k] + iy[k] * dv[k];
+            let pd = delta / (r * r + eps2).sqrt();
+            let wsum = wl[k] + wr[k] + wu[k] + wd[k];
+            let a11 = pd * ix[k] * ix[k] + wsum;
+            let a22 = pd * iy[k] * iy[k] + wsum;
+            a12[k] = pd * ix[k] * iy[k];
+            inv11[k] = if a11 > 0.0 { 1.0 / a11 } else { 0.0 };
+            inv22[k] = if a22 > 0.0 { 1.0 / a22 } else { 0.0 };
+            b1[k] = -pd * ix[k] * iz[k]
+                + wl[k] * (ul[k] - um[k])
+                + wr[k] * (ur[k] - um[k])
+                + wu[k] * (uu[k] - um[k])
+                + wd[k] * (ud[k] - um[k]);
+            b2[k] = -pd * iy[k] * iz[k]
+                + wl[k] * (vl[k] - vm[k])
+                + wr[k] * (vr[k] - vm[k])
+                + wu[k] * (vu[k] - vm[k])
+                + wd[k] * (vd[k] - vm[k]);
+        }
+    });
+}
+
+/// One SOR update of every pixel of colour `c` (its neighbours, in `other`, stay fixed):
+/// `du ← du + ω·((b1 + Σ w·du_q − a12·dv)/a11 − du)`, then `dv` likewise.
+fn sor_half_sweep(
+    sp: &Split,
+    c: usize,
+    sys: &Planes,
+    wts: &[Planes; 2],
+    mine: &mut Planes,
+    other: &Planes,
+    omega: f32,
+) {
+    let ps = sp.ps;
+    let (wm, wo) = (&wts[c], &wts[1 - c]);
+    mine.rows_mut(sp.h).enumerate().for_each(|(y, chunk)| {
+        let s = Split::parity(c, y);
+        let n = sp.count(c, y);
+        let yy = y + 1;
+        let (a12, inv11, inv22, b1, b2) = (
+            sys.span(yy, 0, 1, n),
+            sys.span(yy, 1, 1, n),
+            sys.span(yy, 2, 1, n),
+            sys.span(yy, 3, 1, n),
+            sys.span(yy, 4, 1, n),
+        );
+        let (wr, wd) = (wm.span(yy, 0, 1, n), wm.span(yy, 1, 1, n));
+        let wl = &wo.row(yy, 0)[s..][..n];
+        let wu = &wo.row(yy - 1, 1)[1..][..n];
+        let (dul, dvl) = (&other.row(yy, 0)[s..][..n], &other.row(yy, 1)[s..][..n]);
+        let (dur, dvr) = (
+            &other.row(yy, 0)[s + 1..][..n],
+            &other.row(yy, 1)[s + 1..][..n],
+        );
+        let (duu, dvu) = (
+            &other.row(yy - 1, 0)[1..][..n],
+            &other.row(yy - 1, 1)[1..][..n],
+        );
+        let (dud, dvd) = (
+            &other.row(yy + 1, 0)[1..][..n],
+            &other.row(yy + 1, 1)[1..][..n],
+        );
+        let (du, dv) = chunk.split_at_mut(ps);
+        let (du, dv) = (&mut du[1..][..n], &mut dv[1..][..n]);
+        for k in 0..n {
+            let nu = wl[k] * dul[k] + wr[k] * dur[k] + wu[k] * duu[k] + wd[k] * dud[k];
+            let nv = wl[k] * dvl[k] + wr[k] * dvr[k] + wu[k] * dvu[k] + wd[k] * dvd[k];
+            let u1 = du[k] + omega * ((b1[k] + nu - a12[k] * dv[k]) * inv11[k] - du[k]);
+            let v1 = dv[k] + omega * ((b2[k] + nv - a12[k] * u1) * inv22[k] - dv[k]);
+            du[k] = u1;
+            dv[k] = v1;
+        }
+    });
+}
+
+/// `u + du` from the colour planes back into a row-major flow.
+fn gather(sp: &Split, uv: &[Planes; 2], duv: &[Planes; 2], flow: &mut [[f32; 2]]) {
+    flow.par_chunks_mut(sp.w).enumerate().for_each(|(y, row)| {
+        for c in 0..2 {
+            let s = Split::parity(c, y);
+            let n = sp.count(c, y);
+            let yy = y + 1;
+            let (u, v) = (&uv[c].row(yy, 0)[1..][..n], &uv[c].row(yy, 1)[1..][..n]);
+            let (du, dv) = (&duv[c].row(yy, 0)[1..][..n], &duv[c].row(yy, 1)[1..][..n]);
+            for k in 0..n {
+                row[2 * k + s] = [u[k] + du[k], v[k] + dv[k]];
+            }
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn neighbour_slots_match_the_module_docs() {
+        for (w, h) in [(5, 3), (4, 4), (1, 1), (1, 2), (2, 1)] {
+            let sp = Split::new(w, h);
+            // Load pixel indices as the flow's u component, in both colours.
+            let pool = Pool::default();
+            let mut planes = [Planes::new(&sp, 1, &pool), Planes::new(&sp, 1, &pool)];
+            for (c, p) in planes.iter_mut().enumerate() {
+                p.rows_mut(h).enumerate().for_each(|(y, row)| {
+                    let s = Split::parity(c, y);
+                    for k in 0..sp.count(c, y) {
+                        row[k + 1] = (y * w + 2 * k + s) as f32;
+                    }
+                });
+            }
+            for y in 0..h {
+                for x in 0..w {
+                    let c = (x + y) & 1;
+                    let s = Split::parity(c, y);
+                    let (k, yy) = (x / 2, y + 1);
+                    let other = &planes[1 - c];
+                    assert_eq!(planes[c].row(yy, 0)[k + 1], (y * w + x) as f32);
+                    if x > 0 {
+                        assert_eq!(other.row(yy, 0)[k + s], (y * w + x - 1) as f32);
+                    }
+                    if x + 1 < w {
+                        assert_eq!(other.row(yy, 0)[k + s + 1], (y * w + x + 1) as f32);
+                    }
+                    if y > 0 {
+                        assert_eq!(other.row(yy - 1, 0)[k + 1], ((y - 1) * w + x) as f32);
+                    }
+                    if y + 1 < h {
+                        assert_eq!(other.row(yy + 1, 0)[k + 1], ((y + 1) * w + x) as f32);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_smooth_flow_with_no_data_stays() {
+        // Flat images: no data term, constant flow is already a minimum.
+        let (w, h) = (6, 5);
+        let flat = vec![7.0f32; w * h];
+        let zero = vec![0.0f32; w * h];
+        let pool = Pool::default();
+        let pad = Padded::new(&flat, w, h, 2, &pool);
+        let gpad = Padded::new(&zero, w, h, 2, &pool);
+        let inp = RefineInput {
+            w,
+            h,
+            i0: &flat,
+            gx0: &zero,
+            gy0: &zero,
+            i1: &pad,
+            gx1: &gpad,
+            gy1: &gpad,
+        };
+        let mut flow = vec![[0.5f32, -1.25]; w * h];
+        let s = RefineSettings {
+            fixed_point_iters: 2,
+            sor_iters: 3,
+            sor_omega: 1.6,
+            alpha: 20.0,
+            delta: 5.0,
+        };
+        refine(&inp, &mut flow, &s, &pool);
+        for v in &flow {
+            assert!(
+                (v[0] - 0.5).abs() < 1e-6 && (v[1] + 1.25).abs() < 1e-6,
+                "{v:?}"
+            );
+        }
+    }
+}

@@ -88,13 +88,13 @@ impl FlowParams {
         patch_stride_px: 4,
         finest_level: 2,
         coarsest_level: None,
-        gd_iters: 12,
-        gd_stop_px: 0.02,
+        gd_iters: 8,
+        gd_stop_px: 0.05,
         mean_normalization: true,
         spatial_propagation: true,
         variational_iters: 0,
         sor_iters: 4,
-        sor_omega: 1.6,
+        sor_omega: 1.8,
         smoothness: 20.0,
         data_weight: 5.0,
         polish_gd_iters: 0,
@@ -102,16 +102,22 @@ impl FlowParams {
     };
 
     /// Down to half resolution with two refinement iterations per level.
+    ///
+    /// Few Gauss-Newton steps per patch: with spatial propagation and the coarser level's
+    /// refined flow as starting points, more steps mostly let patches that straddle a
+    /// motion boundary slide to the other motion (measured on `testdata` scenes).
     pub const FAST: Self = Self {
         finest_level: 1,
-        gd_iters: 16,
+        gd_iters: 4,
         variational_iters: 2,
         ..Self::ULTRAFAST
     };
 
-    /// [`FlowParams::FAST`] plus a full-resolution polish (two Gauss-Newton steps per
-    /// patch, one refinement iteration): sharper motion boundaries.
+    /// Down to half resolution, then a full-resolution polish (two Gauss-Newton steps per
+    /// patch from the upsampled flow, one refinement iteration): sharper motion boundaries.
     pub const MEDIUM: Self = Self {
+        gd_iters: 3,
+        sor_iters: 3,
         polish_gd_iters: 2,
         polish_variational_iters: 1,
         ..Self::FAST
@@ -429,6 +435,7 @@ mod tests {
             let p = testdata::translated(640, 480, seed, shift);
             let f = medium().estimate(p.first_view(), p.second_view()).unwrap();
             let epe = f.mean_epe(&p.flow, Some(&p.interior)).unwrap();
+            eprintln!("shift {shift:?}: interior EPE {epe:.4} px");
             assert!(epe < 0.5, "shift {shift:?}: EPE {epe}");
         }
     }
@@ -439,6 +446,7 @@ mod tests {
             let p = testdata::rotated(640, 480, 4, angle.to_radians());
             let f = medium().estimate(p.first_view(), p.second_view()).unwrap();
             let epe = f.mean_epe(&p.flow, Some(&p.interior)).unwrap();
+            eprintln!("{angle} degrees: interior EPE {epe:.4} px");
             assert!(epe < 0.5, "{angle} degrees: EPE {epe}");
         }
     }
@@ -456,6 +464,7 @@ mod tests {
                 .iter()
                 .map(|v| v[0].hypot(v[1]))
                 .fold(0.0f32, f32::max);
+            eprintln!("zero motion: max |flow| {max:e} px");
             assert!(max < 0.05, "{params:?}: max |flow| {max}");
         }
     }
@@ -465,6 +474,7 @@ mod tests {
         let p = Scene::random_objects(640, 480, 11).render();
         let f = medium().estimate(p.first_view(), p.second_view()).unwrap();
         let epe = f.mean_epe(&p.flow, Some(&p.interior)).unwrap();
+        eprintln!("rigid objects: interior EPE {epe:.4} px");
         assert!(epe < 0.5, "EPE {epe}");
     }
 

@@ -4,15 +4,17 @@
 //! Coarse to fine over a 2x2-box image pyramid, from the coarsest level down to
 //! [`FlowParams::finest_level`], each level:
 //! 1. **inverse search**: a grid of `patch_size_px` patches every `patch_stride_px`
-//!    pixels; each patch starts from the coarser level's dense flow (or its left
-//!    neighbour's result, if that matches better) and runs up to `gd_iters`
-//!    inverse-compositional Gauss-Newton steps on its SSD;
+//!    pixels; each patch starts from the coarser level's dense flow and runs up to
+//!    `gd_iters` inverse-compositional Gauss-Newton steps on its SSD, then (spatial
+//!    propagation) four sweeps let it restart from a neighbour's flow that matches better;
 //! 2. **densification**: each pixel averages the flows of the patches covering it,
 //!    weighted by their photometric residual there;
 //! 3. **variational refinement**: `variational_iters` fixed-point iterations of a
 //!    data + smoothness energy, each solved by `sor_iters` red-black SOR sweeps.
 //!
-//! The finest level's flow is then upsampled bilinearly to full resolution.
+//! The finest level's flow is then upsampled bilinearly to full resolution; with a polish
+//! ([`FlowParams::polish_gd_iters`]), one more search (from the upsampled flow, without
+//! propagation), densification and refinement run at full resolution.
 //!
 //! # Threads
 //! Work is split over rayon tasks (patch rows, pixel rows). [`DisFlow::new`] uses rayon's
@@ -40,7 +42,8 @@ use super::{Flow, FlowError, FlowEstimator, GrayF32, RgbView, check_pair};
 use std::sync::Arc;
 
 /// Parameters of [`DisFlow`]. Start from a preset ([`FlowParams::ULTRAFAST`],
-/// [`FlowParams::FAST`], [`FlowParams::MEDIUM`]) and change fields as needed.
+/// [`FlowParams::FAST`], [`FlowParams::MEDIUM`], [`FlowParams::FINE`]) and change fields
+/// as needed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub struct FlowParams {
@@ -113,9 +116,17 @@ impl FlowParams {
         ..Self::ULTRAFAST
     };
 
-    /// Down to half resolution, then a full-resolution polish (two Gauss-Newton steps per
-    /// patch from the upsampled flow, one refinement iteration): sharper motion boundaries.
+    /// [`FlowParams::FAST`] with patches every 3 px: more patches per pixel to choose from
+    /// at motion boundaries.
     pub const MEDIUM: Self = Self {
+        patch_stride_px: 3,
+        ..Self::FAST
+    };
+
+    /// Down to half resolution, then a full-resolution polish (two Gauss-Newton steps per
+    /// patch from the upsampled flow, one refinement iteration): the sharpest motion
+    /// boundaries, at about twice the time of [`FlowParams::MEDIUM`].
+    pub const FINE: Self = Self {
         gd_iters: 3,
         sor_iters: 3,
         polish_gd_iters: 2,
@@ -123,13 +134,14 @@ impl FlowParams {
         ..Self::FAST
     };
 
-    /// The preset called `name` (`"ultrafast"`, `"fast"`, `"medium"`).
+    /// The preset called `name` (`"ultrafast"`, `"fast"`, `"medium"`, `"fine"`).
     #[must_use]
     pub fn preset(name: &str) -> Option<Self> {
         match name {
             "ultrafast" => Some(Self::ULTRAFAST),
             "fast" => Some(Self::FAST),
             "medium" => Some(Self::MEDIUM),
+            "fine" => Some(Self::FINE),
             _ => None,
         }
     }
@@ -454,7 +466,12 @@ mod tests {
     #[test]
     fn zero_motion_gives_zero_flow() {
         let p = testdata::translated(320, 240, 5, [0.0, 0.0]);
-        for params in [FlowParams::ULTRAFAST, FlowParams::FAST, FlowParams::MEDIUM] {
+        for params in [
+            FlowParams::ULTRAFAST,
+            FlowParams::FAST,
+            FlowParams::MEDIUM,
+            FlowParams::FINE,
+        ] {
             let f = DisFlow::new(params)
                 .unwrap()
                 .estimate(p.first_view(), p.first_view())
@@ -583,7 +600,7 @@ mod tests {
                 "{p:?}"
             );
         }
-        for name in ["ultrafast", "fast", "medium"] {
+        for name in ["ultrafast", "fast", "medium", "fine"] {
             assert!(DisFlow::new(FlowParams::preset(name).unwrap()).is_ok());
         }
         assert!(FlowParams::preset("slow").is_none());

@@ -200,6 +200,10 @@ impl PatchModel {
     }
 }
 
+/// A neighbour's flow closer than this (pixels of the level) to a patch's own is not
+/// worth an evaluation.
+const PROPAGATION_MIN_PX: f32 = 0.05;
+
 /// Everything one patch search needs besides its position and start.
 struct Ctx<'a> {
     t: &'a Template<'a>,
@@ -247,7 +251,8 @@ impl Ctx<'_> {
 
     /// Tries a neighbour's flow: if it matches better, the patch restarts from it.
     fn propagate(&self, m: &PatchModel, px: usize, py: usize, cur: State, cand: State) -> State {
-        if cand.u == cur.u && cand.v == cur.v {
+        let (du, dv) = (cand.u - cur.u, cand.v - cur.v);
+        if du * du + dv * dv <= PROPAGATION_MIN_PX * PROPAGATION_MIN_PX {
             return cur;
         }
         let (c, st) = self.eval(m, px, py, cand.u, cand.v);

@@ -37,7 +37,7 @@ use super::densify::densify;
 use super::pool::Pool;
 use super::pyramid::{Padded, Plane, downsample, gradients, upsample_flow};
 use super::search::{Grid, SearchSettings, Template, positions, search_level};
-use super::variational::{RefineInput, RefineSettings, refine};
+use super::variational::{RefineInput, RefineSettings, Warpable, refine};
 use super::{Flow, FlowError, FlowEstimator, GrayF32, RgbView, check_pair};
 use std::sync::Arc;
 
@@ -382,8 +382,7 @@ impl DisFlow {
         self.flows.put(core::mem::replace(flow, dense));
         if step.variational_iters > 0 {
             let (gx1, gy1) = gradients(i1, w, h, pool);
-            let gx1p = Padded::new(&gx1, w, h, PAD, pool);
-            let gy1p = Padded::new(&gy1, w, h, PAD, pool);
+            let second = Warpable::new(i1, &gx1, &gy1, w, h);
             pool.put(gx1);
             pool.put(gy1);
             let inp = RefineInput {
@@ -392,9 +391,7 @@ impl DisFlow {
                 i0,
                 gx0: &gx0,
                 gy0: &gy0,
-                i1: &i1p,
-                gx1: &gx1p,
-                gy1: &gy1p,
+                second: &second,
             };
             let settings = RefineSettings {
                 fixed_point_iters: step.variational_iters,
@@ -404,8 +401,6 @@ impl DisFlow {
                 delta: prm.data_weight,
             };
             refine(&inp, flow, &settings, pool);
-            pool.put(gx1p.data);
-            pool.put(gy1p.data);
         }
         pool.put(i1p.data);
         pool.put(gx0);

@@ -9,9 +9,10 @@
 //! (robust to brightness change). Iterations stop early once a step is shorter than
 //! `stop_px`; the patch keeps the lowest-SSD estimate it saw (the initial guess included).
 //!
-//! Patch rows are independent tasks; within a row, a patch may start from its left
-//! neighbour's result (spatial propagation) when that matches better than the coarser
-//! level's flow. The result does not depend on the thread count.
+//! Spatial propagation (as in DIS): after the first descent, four sweeps (rightwards along
+//! rows, downwards along columns, leftwards, upwards) let each patch restart from its
+//! predecessor's flow when that matches better. Each sweep runs its lines as independent
+//! tasks and each line in order, so the result does not depend on the thread count.
 
 use super::pyramid::Padded;
 use rayon::prelude::*;

@@ -331,7 +331,7 @@ fn smoothness(
 }
 
 /// Freezes the system of colour `c` at the current increment.
-#[allow(clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments)] // the planes of one red-black system, read side by side
 fn system(
     sp: &Split,
     c: usize,

@@ -39,7 +39,11 @@ struct Args {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// riseg presets to run, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "ultrafast,fast,medium")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "ultrafast,fast,medium,fine"
+    )]
     presets: Vec<String>,
     /// Print one row per pair as well.
     #[arg(long)]

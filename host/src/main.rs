@@ -106,10 +106,12 @@ writes the flow as an 8-bit RGB PNG on the Middlebury colour wheel: hue is the d
 largest vector; white is no motion. Outputs are written to a temporary file and renamed, \
 so they are never left half-written.
 
-Presets (one thread, 640x480, on generated pairs; see bench/flow.sh):
+Presets, fastest first (bench/flow.sh measures them against OpenCV's DIS):
   ultrafast  stops at quarter resolution, no refinement: a few ms, coarse boundaries
   fast       stops at half resolution, two refinement iterations per level
-  medium     fast plus a full-resolution polish: sharpest motion boundaries (default)";
+  medium     fast with denser patches (default)
+  fine       half resolution plus a full-resolution polish: sharpest motion boundaries,
+             about twice the time of medium";
 
 #[derive(Debug, clap::Args)]
 struct FlowArgs {
@@ -137,6 +139,7 @@ enum Preset {
     Ultrafast,
     Fast,
     Medium,
+    Fine,
 }
 
 impl Preset {
@@ -145,6 +148,7 @@ impl Preset {
             Self::Ultrafast => FlowParams::ULTRAFAST,
             Self::Fast => FlowParams::FAST,
             Self::Medium => FlowParams::MEDIUM,
+            Self::Fine => FlowParams::FINE,
         }
     }
 }

@@ -7,7 +7,7 @@
 //! result does not depend on the thread count.
 
 use super::pool::Pool;
-use super::pyramid::Padded;
+use super::pyramid::{Padded, Tap};
 use super::search::{Grid, PatchFlow, Template};
 use rayon::prelude::*;
 
@@ -25,6 +25,13 @@ pub(crate) fn densify(
     let (xs, ys, size) = (grid.xs, grid.ys, grid.size);
     let w = t.w;
     // Sums of weight, weight·u and weight·v in separate planes (element-wise loops).
+    // Each patch's bilinear taps, computed once (every row of the patch reuses them).
+    let taps: Vec<Tap> = ys
+        .iter()
+        .flat_map(|&py| xs.iter().map(move |&px| (px, py)))
+        .zip(patches)
+        .map(|((px, py), p)| i1.tap(px as f32 + p.u, py as f32 + p.v, size))
+        .collect();
     let mut sums = pool.zeroed(3 * w * h);
     sums.par_chunks_mut(3 * w)
         .enumerate()
@@ -38,8 +45,9 @@ pub(crate) fn densify(
                     break;
                 }
                 let r = y - py;
-                for (&px, p) in xs.iter().zip(&patches[j * xs.len()..][..xs.len()]) {
-                    let tap = i1.tap(px as f32 + p.u, py as f32 + p.v, size);
+                let row_patches = &patches[j * xs.len()..][..xs.len()];
+                let row_taps = &taps[j * xs.len()..][..xs.len()];
+                for ((&px, p), tap) in xs.iter().zip(row_patches).zip(row_taps) {
                     let a = &i1.data[tap.index + r * i1.stride..][..size + 1];
                     let b = &i1.data[tap.index + (r + 1) * i1.stride..][..size + 1];
                     let (a0, a1, b0, b1) = (&a[..size], &a[1..], &b[..size], &b[1..]);

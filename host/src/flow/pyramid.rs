@@ -178,21 +178,29 @@ pub(crate) fn upsample_flow(
             (x0, (x0 + 1).min(src_w - 1), fx - x0 as f32)
         })
         .collect();
-    dst.par_chunks_mut(dst_w).enumerate().for_each(|(y, out)| {
-        let fy = ((y as f32 + 0.5) * inv - 0.5).clamp(0.0, (src_h - 1) as f32);
-        let y0 = fy as usize; // non-negative: truncation is floor
-        let y1 = (y0 + 1).min(src_h - 1);
-        let ay = fy - y0 as f32;
-        let r0 = &src[y0 * src_w..][..src_w];
-        let r1 = &src[y1 * src_w..][..src_w];
-        for (o, &(x0, x1, ax)) in out.iter_mut().zip(&cols) {
-            for k in 0..2 {
-                let top = r0[x0][k] + ax * (r0[x1][k] - r0[x0][k]);
-                let bottom = r1[x0][k] + ax * (r1[x1][k] - r1[x0][k]);
-                o[k] = s * (top + ay * (bottom - top));
+    // Per output row: blend the two source rows vertically (element-wise), then resample
+    // that row horizontally through the column table.
+    dst.par_chunks_mut(dst_w).enumerate().for_each_init(
+        || vec![[0.0f32; 2]; src_w],
+        |row, (y, out)| {
+            let fy = ((y as f32 + 0.5) * inv - 0.5).clamp(0.0, (src_h - 1) as f32);
+            let y0 = fy as usize; // non-negative: truncation is floor
+            let y1 = (y0 + 1).min(src_h - 1);
+            let ay = fy - y0 as f32;
+            let r0 = &src[y0 * src_w..][..src_w];
+            let r1 = &src[y1 * src_w..][..src_w];
+            for ((v, a), b) in row.iter_mut().zip(r0).zip(r1) {
+                *v = [
+                    s * (a[0] + ay * (b[0] - a[0])),
+                    s * (a[1] + ay * (b[1] - a[1])),
+                ];
             }
-        }
-    });
+            for (o, &(x0, x1, ax)) in out.iter_mut().zip(&cols) {
+                let (a, b) = (row[x0], row[x1]);
+                *o = [a[0] + ax * (b[0] - a[0]), a[1] + ax * (b[1] - a[1])];
+            }
+        },
+    );
     dst
 }
 

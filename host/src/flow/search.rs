@@ -9,9 +9,10 @@
 //! (robust to brightness change). Iterations stop early once a step is shorter than
 //! `stop_px`; the patch keeps the lowest-SSD estimate it saw (the initial guess included).
 //!
-//! Patch rows are independent tasks; within a row, a patch may start from its left
-//! neighbour's result (spatial propagation) when that matches better than the coarser
-//! level's flow. The result does not depend on the thread count.
+//! Spatial propagation (as in DIS): after the first descent, four sweeps (rightwards along
+//! rows, downwards along columns, leftwards, upwards) let each patch restart from its
+//! predecessor's flow when that matches better. Each sweep runs its lines as independent
+//! tasks and each line in order, so the result does not depend on the thread count.
 
 use super::pyramid::Padded;
 use rayon::prelude::*;
@@ -200,6 +201,10 @@ impl PatchModel {
     }
 }
 
+/// A neighbour's flow closer than this (pixels of the level) to a patch's own is not
+/// worth an evaluation.
+const PROPAGATION_MIN_PX: f32 = 0.05;
+
 /// Everything one patch search needs besides its position and start.
 struct Ctx<'a> {
     t: &'a Template<'a>,
@@ -247,7 +252,8 @@ impl Ctx<'_> {
 
     /// Tries a neighbour's flow: if it matches better, the patch restarts from it.
     fn propagate(&self, m: &PatchModel, px: usize, py: usize, cur: State, cand: State) -> State {
-        if cand.u == cur.u && cand.v == cur.v {
+        let (du, dv) = (cand.u - cur.u, cand.v - cur.v);
+        if du * du + dv * dv <= PROPAGATION_MIN_PX * PROPAGATION_MIN_PX {
             return cur;
         }
         let (c, st) = self.eval(m, px, py, cand.u, cand.v);

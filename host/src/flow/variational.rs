@@ -21,7 +21,6 @@
 //! the same row and slot `k + 1` of the rows above and below.
 
 use super::pool::Pool;
-use super::pyramid::Padded;
 use rayon::prelude::*;
 
 /// Settings of the refinement.
@@ -46,10 +45,36 @@ pub(crate) struct RefineInput<'a> {
     pub i0: &'a [f32],
     pub gx0: &'a [f32],
     pub gy0: &'a [f32],
-    /// The second image and its gradients, padded alike (one tap serves all three).
-    pub i1: &'a Padded,
-    pub gx1: &'a Padded,
-    pub gy1: &'a Padded,
+    /// The second image and its gradients, interleaved.
+    pub second: &'a Warpable,
+}
+
+/// The second image and its gradients interleaved per pixel as `[I1, ∂I1/∂x, ∂I1/∂y, 0]`
+/// (one bilinear tap reads all three), row-major with the last column and row repeated
+/// once so that a tap at the last pixel stays inside.
+#[derive(Debug, Clone)]
+pub(crate) struct Warpable {
+    stride: usize,
+    data: Vec<[f32; 4]>,
+}
+
+impl Warpable {
+    /// Interleaves `i1`, `gx` and `gy` (each `w x h`, `w, h >= 1`).
+    pub fn new(i1: &[f32], gx: &[f32], gy: &[f32], w: usize, h: usize) -> Self {
+        let stride = w + 1;
+        let mut data = vec![[0.0f32; 4]; stride * (h + 1)];
+        data.par_chunks_mut(stride)
+            .enumerate()
+            .for_each(|(yy, out)| {
+                let y = yy.min(h - 1) * w;
+                let (a, b, c) = (&i1[y..][..w], &gx[y..][..w], &gy[y..][..w]);
+                for (((o, &a), &b), &c) in out.iter_mut().zip(a).zip(b).zip(c) {
+                    *o = [a, b, c, 0.0];
+                }
+                out[w] = out[w - 1];
+            });
+        Self { stride, data }
+    }
 }
 
 /// Geometry of the colour planes.
@@ -195,7 +220,8 @@ fn warp(
 ) {
     let ps = sp.ps;
     let (wmax, hmax) = ((sp.w - 1) as f32, (sp.h - 1) as f32);
-    let (pad, stride) = (inp.i1.pad as f32, inp.i1.stride);
+    let src = inp.second;
+    let stride = src.stride;
     uv.rows_mut(sp.h)
         .zip(duv.rows_mut(sp.h))
         .zip(deriv.rows_mut(sp.h))
@@ -221,25 +247,20 @@ fn warp(
                 let (xw, yw) = (x as f32 + ur[k], y as f32 + vr[k]);
                 let mut d = [0.0f32; 3];
                 if (0.0..=wmax).contains(&xw) && (0.0..=hmax).contains(&yw) {
-                    // Inside the image, so every tap is inside the padded buffers and the
-                    // (non-negative) positions truncate to their floor.
-                    // (`i32` conversions are single instructions; `usize` ones are not.)
-                    let (px, py) = (xw + pad, yw + pad);
-                    let (ix, iy) = (px as i32, py as i32);
-                    let (ax, ay) = (px - ix as f32, py - iy as f32);
+                    // Inside the image: non-negative, so truncation is floor (and `i32`
+                    // conversions are single instructions, `usize` ones are not).
+                    let (ix, iy) = (xw as i32, yw as i32);
+                    let (ax, ay) = (xw - ix as f32, yw - iy as f32);
                     let at = iy.unsigned_abs() as usize * stride + ix.unsigned_abs() as usize;
-                    let tap = |p: &Padded| {
-                        p.data.get(at..at + stride + 2).map_or(0.0, |q| {
-                            let top = q[0] + ax * (q[1] - q[0]);
-                            let bottom = q[stride] + ax * (q[stride + 1] - q[stride]);
-                            top + ay * (bottom - top)
-                        })
-                    };
-                    d = [
-                        0.5 * (tap(inp.gx1) + gx0[x]),
-                        0.5 * (tap(inp.gy1) + gy0[x]),
-                        tap(inp.i1) - i0[x],
-                    ];
+                    if let Some(q) = src.data.get(at..at + stride + 2) {
+                        let lerp = |p: [f32; 4], q: [f32; 4], t: f32| -> [f32; 4] {
+                            core::array::from_fn(|i| p[i] + t * (q[i] - p[i]))
+                        };
+                        let top = lerp(q[0], q[1], ax);
+                        let bottom = lerp(q[stride], q[stride + 1], ax);
+                        let v = lerp(top, bottom, ay);
+                        d = [0.5 * (v[1] + gx0[x]), 0.5 * (v[2] + gy0[x]), v[0] - i0[x]];
+                    }
                 }
                 // Out of view: zero derivatives make the data term vanish.
                 [ixr[k], iyr[k], izr[k]] = d;
@@ -310,7 +331,7 @@ fn smoothness(
 }
 
 /// Freezes the system of colour `c` at the current increment.
-#[allow(clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments)] // the planes of one red-black system, read side by side
 fn system(
     sp: &Split,
     c: usize,
@@ -494,17 +515,14 @@ mod tests {
         let flat = vec![7.0f32; w * h];
         let zero = vec![0.0f32; w * h];
         let pool = Pool::default();
-        let pad = Padded::new(&flat, w, h, 2, &pool);
-        let gpad = Padded::new(&zero, w, h, 2, &pool);
+        let second = Warpable::new(&flat, &zero, &zero, w, h);
         let inp = RefineInput {
             w,
             h,
             i0: &flat,
             gx0: &zero,
             gy0: &zero,
-            i1: &pad,
-            gx1: &gpad,
-            gy1: &gpad,
+            second: &second,
         };
         let mut flow = vec![[0.5f32, -1.25]; w * h];
         let s = RefineSettings {

@@ -123,6 +123,20 @@ pub struct StepReport {
     pub mask: MaskReport,
 }
 
+/// The stages of one [`update_mask`] step, in order, as reported to the observer of
+/// [`update_mask_observed`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// CreateFrames finished.
+    Frames,
+    /// CalcBFIFs (the twists) finished.
+    Twists,
+    /// GroupBFIFs finished.
+    Grouping,
+    /// CorrectMask finished.
+    Mask,
+}
+
 /// UpdateMask (Algorithm 3): from the accumulated mask at `t` (in `input`), the static mask
 /// at `t+1` and the flow, writes the corrected mask at `t+1` to `labels_t1`.
 ///
@@ -136,10 +150,27 @@ pub fn update_mask(
     ws: &mut Workspace<'_>,
     labels_t1: &mut [u16],
 ) -> Result<StepReport, Error> {
+    update_mask_observed(input, static_t1, cfg, ws, labels_t1, |_| {})
+}
+
+/// [`update_mask`], calling `on_stage` as each stage finishes (a host reads a clock there
+/// for per-stage timing; the core itself has none).
+///
+/// # Errors
+/// As [`update_mask`].
+pub fn update_mask_observed(
+    input: &MotionInput<'_>,
+    static_t1: &ImageView<'_, u16>,
+    cfg: &Config,
+    ws: &mut Workspace<'_>,
+    labels_t1: &mut [u16],
+    mut on_stage: impl FnMut(Stage),
+) -> Result<StepReport, Error> {
     cfg.check()?;
     let (width, height) = input.size();
     ws.check(&WorkspaceLen::for_config(cfg, width, height))?;
     let frames = create_frames(input, cfg, ws.samples, ws.frames)?;
+    on_stage(Stage::Frames);
     let count = frames.count;
     let (Some(frame_list), Some(twists), Some(labels)) = (
         ws.frames.get(..count),
@@ -153,11 +184,13 @@ pub fn update_mask(
         });
     };
     compute_twists(frame_list, &frames.space_origin, twists)?;
+    on_stage(Stage::Twists);
     for (l, f) in labels.iter_mut().zip(frame_list) {
         *l = f.label;
     }
     let frame_group = ws.frame_group.get_mut(..count).unwrap_or(&mut []);
     let grouping = group_frames(twists, labels, cfg, &mut ws.group, frame_group, ws.groups)?;
+    on_stage(Stage::Grouping);
     let groups = FrameGroups {
         frames: frame_list,
         frame_group,
@@ -165,6 +198,7 @@ pub fn update_mask(
         space_origin: frames.space_origin,
     };
     let mask = correct_mask(input, static_t1, &groups, cfg, &mut ws.mask, labels_t1)?;
+    on_stage(Stage::Mask);
     Ok(StepReport {
         frames,
         grouping,
@@ -425,6 +459,38 @@ pub(crate) mod tests {
         for (id, iou) in best_ious(&r.labels_t1, &out) {
             assert!(iou >= 0.95, "object {id}: IoU {iou:.3} ({report:?})");
         }
+    }
+
+    #[test]
+    fn the_observer_sees_each_stage_once_in_order_and_the_result_is_unchanged() {
+        let boxes = row(&[slide_y(0.01), Pose::identity()]);
+        let r = render(&boxes, 160, 120);
+        let (w, h) = (r.width, r.height);
+        let cfg = Config::PAPER;
+        let (plain, plain_report) = step_merged(&r, &cfg);
+        let merged_t: Vec<u16> = r.labels_t.iter().map(|&l| u16::from(l != 0)).collect();
+        let merged_t1: Vec<u16> = r.labels_t1.iter().map(|&l| u16::from(l != 0)).collect();
+        let input = MotionInput::new(
+            ImageView::packed(w, h, &merged_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t1).unwrap(),
+            ImageView::packed(w, h, &r.flow).unwrap(),
+            r.intrinsics,
+        )
+        .unwrap();
+        let mut ws = OwnedWorkspace::new(&cfg, w, h);
+        let mut out = vec![0u16; w * h];
+        let static_t1 = ImageView::packed(w, h, &merged_t1).unwrap();
+        let mut seen = Vec::new();
+        let report = update_mask_observed(&input, &static_t1, &cfg, &mut ws.view(), &mut out, |s| {
+            seen.push(s);
+        })
+        .unwrap();
+        assert_eq!(
+            seen,
+            [Stage::Frames, Stage::Twists, Stage::Grouping, Stage::Mask]
+        );
+        assert_eq!((out, report), (plain, plain_report));
     }
 
     #[test]

@@ -12,6 +12,9 @@
 //! - [`generate`]: simulated datasets in the scene folder format (`riseg gen`).
 //! - [`preview`]: a picture of a scene for people.
 
+pub mod bench;
+pub mod camera;
+pub mod episode;
 pub mod eval;
 pub mod flow;
 pub mod generate;
@@ -23,4 +26,5 @@ pub mod scene;
 pub mod segment;
 pub mod sim;
 pub mod synthetic;
+pub mod tracker;
 pub mod workspace;

@@ -6,6 +6,8 @@ use std::process::ExitCode;
 use anyhow::{Context as _, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
+use riseg::bench::{self, BenchConfig};
+use riseg::episode::Stop;
 use riseg::eval;
 use riseg::flow::{
     DisFlow, FlowEstimator as _, FlowParams, RgbView,
@@ -88,6 +90,47 @@ enum Command {
     /// Dense optical flow from FIRST.png to SECOND.png with the built-in DIS estimator.
     #[command(long_about = FLOW_HELP)]
     Flow(FlowArgs),
+    /// The paper's experiment (Table 1) on simulated scenes: static segmenter vs RISeg.
+    #[command(long_about = BENCH_HELP)]
+    Bench(BenchArgs),
+}
+
+const BENCH_HELP: &str = "\
+The paper's experiment (its Table 1) on simulated scenes: static segmenter vs RISeg.
+
+Each scene is a table with 4-6 touching objects (the scenes of `riseg gen` with the same \
+seed). On each, the loop of Algorithm 1 runs with the built-in segmenter and optical \
+flow: FindAction picks a push from the static heatmap, the simulated arm makes it, \
+UpdateMask corrects the mask; at most 3 pushes, fewer when no push qualifies. Every frame \
+is scored against the simulator's ground truth, both the static segmentation of that \
+frame and RISeg's accumulated mask (at push 0 they are the same).
+
+Columns (percent, averaged over the scenes that reached that push): overlap F, boundary \
+F, and the share of objects found with overlap F > 75 (see `riseg eval --help`). Then \
+the median milliseconds per step of each stage: segment (static segmentation), flow (one \
+thread), frames, twists, grouping, mask (riseg-core's UpdateMask stages).
+
+The tables are the same for a seed on any machine and thread count; times vary.
+
+Example:
+  riseg bench --scenes 23 --seed 1 --json bench-seed1.json";
+
+#[derive(Debug, Args)]
+struct BenchArgs {
+    /// Number of scenes.
+    #[arg(long, default_value_t = 23)]
+    scenes: usize,
+    /// Dataset seed (scene i uses the simulator seed `riseg gen` derives from it).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Also write the report as JSON: {"static": [ROW..], "riseg": [ROW..],
+    /// "timing_ms": {..}}, ROW as in `riseg eval --json`. Written atomically.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
+    /// Also print one line per scene and frame: the objects found (F > 75) and boundary F
+    /// of the static segmentation and of RISeg, and why the episode stopped.
+    #[arg(long)]
+    per_scene: bool,
 }
 
 const FLOW_HELP: &str = "\
@@ -306,6 +349,7 @@ fn main() -> ExitCode {
         Command::Gen(args) => run_gen(&args),
         Command::Segment(args) => segment(&args),
         Command::Flow(args) => run_flow(&args),
+        Command::Bench(args) => run_bench(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -345,6 +389,78 @@ fn run_gen(args: &GenArgs) -> anyhow::Result<()> {
         out.display(),
         out.join(PREVIEW_DIR).display()
     );
+    Ok(())
+}
+
+fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
+    let cfg = BenchConfig::new(args.scenes, args.seed);
+    let bar = ProgressBar::new(args.scenes as u64).with_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} scenes  {elapsed}  eta {eta}  {msg}")
+            .context("progress bar template")?,
+    );
+    let (report, results) = bench::run_bench(&cfg, |r| {
+        bar.set_message(format!(
+            "scene {}: {} pushes, {:?}",
+            r.scene,
+            r.times.len().saturating_sub(1),
+            r.stop
+        ));
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    let refused = results
+        .iter()
+        .filter(|r| matches!(r.stop, Stop::Refused(_)))
+        .count();
+    println!(
+        "{} scenes, seed {}; pushes per scene: {}{}",
+        args.scenes,
+        args.seed,
+        results
+            .iter()
+            .map(|r| (r.times.len() - 1).to_string())
+            .collect::<Vec<_>>()
+            .join(" "),
+        if refused > 0 {
+            format!("; {refused} episodes stopped on a refused push")
+        } else {
+            String::new()
+        }
+    );
+    if args.per_scene {
+        for r in &results {
+            let frames: Vec<String> = r
+                .static_metrics
+                .iter()
+                .zip(&r.riseg_metrics)
+                .map(|(s, m)| {
+                    format!(
+                        "{}/{}->{}/{} b{:.0}->{:.0}",
+                        s.objects_detected,
+                        s.objects_gt,
+                        m.objects_detected,
+                        m.objects_gt,
+                        100.0 * s.boundary.f_measure,
+                        100.0 * m.boundary.f_measure
+                    )
+                })
+                .collect();
+            println!(
+                "scene {:>3} (sim seed {:>20}): {}  [{:?}]",
+                r.scene,
+                r.sim_seed,
+                frames.join(" | "),
+                r.stop
+            );
+        }
+    }
+    print!("{report}");
+    if let Some(path) = &args.json {
+        let mut json = serde_json::to_vec_pretty(&report).context("encoding the report")?;
+        json.push(b'\n');
+        write_atomic(path, &json).with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("wrote {}", path.display());
+    }
     Ok(())
 }
 

@@ -1,11 +1,26 @@
 //! The robot side of the loop: a push planned by FindAction in the camera frame becomes a
-//! straight Cartesian motion in the robot frame, checked against limits before it is sent.
+//! straight, level Cartesian motion in the robot frame, checked against limits before it is
+//! sent, and the [`Robot`] trait that executes it.
 //!
 //! Frames: `robot_from_camera` is the hand-eye calibration (the user's file for a real
-//! robot; the simulator's true camera pose in simulation). A push is refused, never
-//! clipped, when its start or end leaves the workspace box or it is longer than allowed:
-//! a robot that silently moves somewhere else than planned is worse than one that stops.
-
+//! robot; the simulator's true camera pose in simulation). The robot frame has z up, normal
+//! to the table. A push is refused, never clipped, when its start or end leaves the
+//! workspace box or it is longer than allowed: a robot that silently moves somewhere else
+//! than planned is worse than one that stops.
+//!
+//! # From FindAction's push to a command
+//!
+//! FindAction's start point lies on the object's top surface just outside its *certain*
+//! region, which ends a few millimetres inside the object. The caller finds where the
+//! pushed segment really ends along the push line (the object's `edge`, camera frame);
+//! [`plan_push`] then
+//! 1. maps the edge and the direction to the robot frame and levels the direction (a push
+//!    slides along the table);
+//! 2. lowers the tool to half the edge's height over the table (objects tip less when
+//!    pushed near their middle), at least [`PushGeometry::min_height_m`];
+//! 3. backs the start off the edge by [`PushGeometry::approach_m`] so the tool starts
+//!    clear of the object, and lengthens the motion by the same amount: the object itself
+//!    moves about FindAction's push length.
 use nalgebra::{Point3, Vector3};
 use riseg_core::{Pose, action::Push};
 
@@ -71,52 +86,102 @@ pub enum PushRefused {
     },
 }
 
-/// Turns a FindAction push (camera frame) into a robot command, or refuses it.
-///
-/// # Errors
-/// [`PushRefused`] when the push is not finite, too long, or starts or ends outside the
-/// workspace.
-pub fn plan_push(
-    push: &Push,
-    robot_from_camera: &Pose,
-    limits: &PushLimits,
-) -> Result<PushCommand, PushRefused> {
-    let start = robot_from_camera * push.start_cam_m;
-    let direction = (robot_from_camera.rotation * push.direction_cam)
-        .try_normalize(1e-6)
-        .ok_or(PushRefused::NotFinite)?;
-    let finite = start
-        .coords
-        .iter()
-        .chain(direction.iter())
-        .all(|v| v.is_finite());
-    if !finite || !push.length_m.is_finite() || push.length_m < 0.0 {
-        return Err(PushRefused::NotFinite);
-    }
-    if push.length_m > limits.max_push_len_m {
-        return Err(PushRefused::TooLong {
-            length_m: push.length_m,
-            limit_m: limits.max_push_len_m,
-        });
-    }
-    let cmd = PushCommand {
-        start_robot_m: start,
-        direction_robot: direction,
-        length_m: push.length_m,
-    };
-    for (which, p) in [("start", cmd.start_robot_m), ("end", cmd.end_robot_m())] {
-        let inside =
-            (0..3).all(|i| p[i] >= limits.workspace_min_m[i] && p[i] <= limits.workspace_max_m[i]);
-        if !inside {
-            return Err(PushRefused::OutsideWorkspace {
-                which,
-                point: [p.x, p.y, p.z],
-                min: limits.workspace_min_m,
-                max: limits.workspace_max_m,
+/// How a push meets the objects, robot frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PushGeometry {
+    /// Height of the table top in the robot frame, metres.
+    pub table_z_m: f32,
+    /// Gap between the object's edge and the tool's centre at the start, metres (more than
+    /// the tool's radius).
+    pub approach_m: f32,
+    /// Lowest height of the tool's centre over the table, metres.
+    pub min_height_m: f32,
+}
+
+impl PushLimits {
+    /// Checks `cmd` against the limits.
+    ///
+    /// # Errors
+    /// [`PushRefused`] when the command is not finite, too long, or starts or ends outside
+    /// the workspace.
+    pub fn check(&self, cmd: &PushCommand) -> Result<(), PushRefused> {
+        let finite = cmd
+            .start_robot_m
+            .coords
+            .iter()
+            .chain(cmd.direction_robot.iter())
+            .all(|v| v.is_finite());
+        if !finite || !cmd.length_m.is_finite() || cmd.length_m < 0.0 {
+            return Err(PushRefused::NotFinite);
+        }
+        if cmd.length_m > self.max_push_len_m {
+            return Err(PushRefused::TooLong {
+                length_m: cmd.length_m,
+                limit_m: self.max_push_len_m,
             });
         }
+        for (which, p) in [("start", cmd.start_robot_m), ("end", cmd.end_robot_m())] {
+            let inside =
+                (0..3).all(|i| p[i] >= self.workspace_min_m[i] && p[i] <= self.workspace_max_m[i]);
+            if !inside {
+                return Err(PushRefused::OutsideWorkspace {
+                    which,
+                    point: [p.x, p.y, p.z],
+                    min: self.workspace_min_m,
+                    max: self.workspace_max_m,
+                });
+            }
+        }
+        Ok(())
     }
+}
+
+/// Turns a FindAction push whose object ends at `edge_cam_m` (camera frame, metres) into a
+/// level robot command (module docs), or refuses it.
+///
+/// # Errors
+/// [`PushRefused::NotFinite`] when a value is not finite or the push is vertical in the
+/// robot frame; the errors of [`PushLimits::check`].
+pub fn plan_push(
+    push: &Push,
+    edge_cam_m: &Point3<f32>,
+    robot_from_camera: &Pose,
+    geometry: &PushGeometry,
+    limits: &PushLimits,
+) -> Result<PushCommand, PushRefused> {
+    let edge = robot_from_camera * edge_cam_m;
+    let mut direction = robot_from_camera.rotation * push.direction_cam;
+    direction.z = 0.0;
+    let direction = direction
+        .try_normalize(1e-6)
+        .ok_or(PushRefused::NotFinite)?;
+    let over_table_m = (0.5 * (edge.z - geometry.table_z_m)).max(geometry.min_height_m);
+    let contact = Point3::new(edge.x, edge.y, geometry.table_z_m + over_table_m);
+    let cmd = PushCommand {
+        start_robot_m: contact - direction * geometry.approach_m,
+        direction_robot: direction,
+        length_m: push.length_m + geometry.approach_m,
+    };
+    limits.check(&cmd)?;
     Ok(cmd)
+}
+
+/// Why the robot could not execute a push.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct RobotError(pub String);
+
+/// Something that executes pushes: the simulator, or a real arm.
+pub trait Robot {
+    /// Where pushes may go; the loop checks every command against these before sending.
+    fn limits(&self) -> PushLimits;
+
+    /// Moves the tool along `cmd` and back out of the scene; returns once the scene is
+    /// still again.
+    ///
+    /// # Errors
+    /// [`RobotError`] when the motion could not be made.
+    fn execute(&mut self, cmd: &PushCommand) -> Result<(), RobotError>;
 }
 
 #[cfg(test)]
@@ -125,7 +190,8 @@ mod tests {
 
     use super::*;
 
-    /// A camera 0.6 m above the table origin, looking down and tilted 15° (camera z = view).
+    /// A camera 0.6 m above the table (z = 0), 0.5 m along x from the robot base, looking
+    /// down and tilted 15° about x (camera z = view).
     fn robot_from_camera() -> Pose {
         let down = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), core::f32::consts::PI);
         let tilt = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 15f32.to_radians());
@@ -134,77 +200,91 @@ mod tests {
 
     fn limits() -> PushLimits {
         PushLimits {
-            workspace_min_m: [0.2, -0.3, -0.01],
+            workspace_min_m: [0.2, -0.3, 0.0],
             workspace_max_m: [0.8, 0.3, 0.3],
             max_push_len_m: 0.05,
         }
     }
 
-    fn push_at(start_cam_m: Point3<f32>, direction_cam: Vector3<f32>, length_m: f32) -> Push {
+    const GEOMETRY: PushGeometry = PushGeometry {
+        table_z_m: 0.0,
+        approach_m: 0.01,
+        min_height_m: 0.007,
+    };
+
+    fn push_towards(direction_cam: Vector3<f32>, length_m: f32) -> Push {
         Push {
             start_px: [0.0, 0.0],
             target_px: [0.0, 0.0],
-            start_cam_m,
+            start_cam_m: Point3::origin(),
             direction_cam,
             length_m,
         }
     }
 
     #[test]
-    fn a_push_in_the_camera_frame_lands_where_the_hand_eye_transform_says() {
+    fn the_edge_maps_through_the_hand_eye_transform_and_the_push_is_level_at_half_height() {
         let t = robot_from_camera();
-        let p = push_at(
-            Point3::new(0.02, -0.01, 0.58),
-            Vector3::new(1.0, 0.0, 0.0),
-            0.02,
-        );
-        let cmd = plan_push(&p, &t, &limits()).unwrap();
-        let expected_start = t * p.start_cam_m;
-        assert!((cmd.start_robot_m - expected_start).norm() < 1e-6);
-        // The camera's x axis is the robot's x axis (rotations are about x only).
-        assert!((cmd.direction_robot - Vector3::x()).norm() < 1e-6);
-        assert!((cmd.end_robot_m() - (expected_start + Vector3::x() * 0.02)).norm() < 1e-6);
-        // Not the identity: the start moved from camera to robot coordinates.
-        assert!((cmd.start_robot_m.coords - p.start_cam_m.coords).norm() > 0.1);
+        // An object edge 4 cm over the table at (0.55, 0.02) in the robot frame.
+        let edge_robot = Point3::new(0.55, 0.02, 0.04);
+        let edge_cam = t.inverse() * edge_robot;
+        // Pointing along robot +y, but tilted down in the camera's view.
+        let dir_cam = t.inverse().rotation * Vector3::new(0.0, 1.0, -0.3).normalize();
+        let cmd = plan_push(&push_towards(dir_cam, 0.02), &edge_cam, &t, &GEOMETRY, &limits())
+            .unwrap();
+        assert!((cmd.direction_robot - Vector3::y()).norm() < 1e-5, "{cmd:?}");
+        let expected_start = Point3::new(0.55, 0.02 - 0.01, 0.02);
+        assert!((cmd.start_robot_m - expected_start).norm() < 1e-5, "{cmd:?}");
+        assert!((cmd.length_m - 0.03).abs() < 1e-6);
+        assert!((cmd.end_robot_m() - Point3::new(0.55, 0.04, 0.02)).norm() < 1e-5);
+        // Not the identity: the camera-frame edge is far from its robot-frame coordinates.
+        assert!((edge_cam.coords - edge_robot.coords).norm() > 0.1);
+    }
+
+    #[test]
+    fn a_low_object_is_pushed_at_the_minimum_height() {
+        let t = robot_from_camera();
+        let edge_cam = t.inverse() * Point3::new(0.5, 0.0, 0.008);
+        let dir_cam = t.inverse().rotation * Vector3::x();
+        let cmd = plan_push(&push_towards(dir_cam, 0.02), &edge_cam, &t, &GEOMETRY, &limits())
+            .unwrap();
+        assert!((cmd.start_robot_m.z - 0.007).abs() < 1e-5, "{cmd:?}");
     }
 
     #[test]
     fn pushes_outside_limits_are_refused_with_a_clear_message() {
         let t = robot_from_camera();
-        let far = push_at(
-            Point3::new(0.0, 0.0, 2.0),
-            Vector3::new(1.0, 0.0, 0.0),
-            0.02,
-        );
-        let err = plan_push(&far, &t, &limits()).unwrap_err();
+        let along_x = t.inverse().rotation * Vector3::x();
+        let far = t.inverse() * Point3::new(0.5, 0.9, 0.04);
+        let err = plan_push(&push_towards(along_x, 0.02), &far, &t, &GEOMETRY, &limits())
+            .unwrap_err();
         assert!(matches!(
             err,
             PushRefused::OutsideWorkspace { which: "start", .. }
         ));
         assert!(err.to_string().contains("outside the workspace"), "{err}");
-        let long = push_at(
-            Point3::new(0.0, 0.0, 0.58),
-            Vector3::new(1.0, 0.0, 0.0),
-            0.2,
-        );
+        let near = t.inverse() * Point3::new(0.5, 0.0, 0.04);
         assert_eq!(
-            plan_push(&long, &t, &limits()),
+            plan_push(&push_towards(along_x, 0.2), &near, &t, &GEOMETRY, &limits()),
             Err(PushRefused::TooLong {
-                length_m: 0.2,
+                length_m: 0.21,
                 limit_m: 0.05
             })
         );
-        let nan = push_at(
-            Point3::new(f32::NAN, 0.0, 0.58),
-            Vector3::new(1.0, 0.0, 0.0),
-            0.02,
+        let nan = Point3::new(f32::NAN, 0.0, 0.58);
+        assert_eq!(
+            plan_push(&push_towards(along_x, 0.02), &nan, &t, &GEOMETRY, &limits()),
+            Err(PushRefused::NotFinite)
         );
-        assert_eq!(plan_push(&nan, &t, &limits()), Err(PushRefused::NotFinite));
-        // Ends outside: start near the +x edge, pushing further out.
-        let start_cam = t.inverse() * Point3::new(0.79, 0.0, 0.05);
-        let out = push_at(start_cam, t.inverse().rotation * Vector3::x(), 0.02);
+        let vertical = t.inverse().rotation * Vector3::z();
+        assert_eq!(
+            plan_push(&push_towards(vertical, 0.02), &near, &t, &GEOMETRY, &limits()),
+            Err(PushRefused::NotFinite)
+        );
+        // Ends outside: starts near the +x edge of the box, pushing further out.
+        let edge = t.inverse() * Point3::new(0.79, 0.0, 0.04);
         assert!(matches!(
-            plan_push(&out, &t, &limits()),
+            plan_push(&push_towards(along_x, 0.02), &edge, &t, &GEOMETRY, &limits()),
             Err(PushRefused::OutsideWorkspace { which: "end", .. })
         ));
     }

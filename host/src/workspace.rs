@@ -1,8 +1,10 @@
-//! `Vec`-backed storage for riseg-core's caller-provided [`Workspace`], sized once for a
-//! config and image size and reused across steps (no allocation per step).
+//! `Vec`-backed storage for riseg-core's caller-provided [`Workspace`] and
+//! [`ActionScratch`], sized once for a config and image size and reused across steps (no
+//! allocation per step).
 
 use riseg_core::{
-    Config, Pose, Twist,
+    Config, Pose, Real, Twist,
+    action::{ActionScratch, ActionScratchLen},
     frames::{BodyFrame, FrameSample},
     group::{GroupInfo, GroupScratch},
     mask::MaskScratch,
@@ -99,6 +101,42 @@ impl WorkspaceBuf {
                 seeds: &mut self.seeds,
                 motions: &mut self.motions,
             },
+        }
+    }
+}
+
+/// Owns the buffers of FindAction's [`ActionScratch`].
+#[derive(Debug, Clone)]
+pub struct ActionBuf {
+    certain: Vec<Real>,
+    uncertain: Vec<Real>,
+    dist2: Vec<Real>,
+    nearest: Vec<u32>,
+    row_counts: Vec<u32>,
+}
+
+impl ActionBuf {
+    /// Buffers for `cfg` at `width × height`.
+    #[must_use]
+    pub fn new(cfg: &Config, width: usize, height: usize) -> Self {
+        let len = ActionScratchLen::for_config(cfg, width, height);
+        Self {
+            certain: vec![0.0; len.certain],
+            uncertain: vec![0.0; len.uncertain],
+            dist2: vec![0.0; len.dist2],
+            nearest: vec![0; len.nearest],
+            row_counts: vec![0; len.row_counts],
+        }
+    }
+
+    /// Lends the buffers to [`riseg_core::action::find_action`].
+    pub fn view(&mut self) -> ActionScratch<'_> {
+        ActionScratch {
+            certain: &mut self.certain,
+            uncertain: &mut self.uncertain,
+            dist2: &mut self.dist2,
+            nearest: &mut self.nearest,
+            row_counts: &mut self.row_counts,
         }
     }
 }

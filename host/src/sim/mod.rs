@@ -37,6 +37,7 @@ mod convert;
 mod flow;
 mod layout;
 mod render;
+mod rig;
 
 use core::fmt;
 
@@ -49,6 +50,7 @@ use riseg_core::{Intrinsics, Pose, rng::Pcg32};
 
 pub use flow::{UNKNOWN_FLOW, ground_truth_flow};
 pub use layout::ObjectShape;
+pub use rig::{SIM_MAX_PUSH_LEN_M, SIM_MAX_TOOL_HEIGHT_M, SimCamera, SimRig, SimRobot};
 
 use crate::imageio::{DepthImage, Gray16Image, RgbImage};
 use convert::{

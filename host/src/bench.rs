@@ -1,0 +1,319 @@
+//! `riseg bench`: the paper's experiment (Table 1) on simulated scenes.
+//!
+//! # Contract
+//!
+//! Scene `i` of seed `S` is the simulator's scene [`scene_seed`]`(S, i)` (the next attempt
+//! seed when no placement fits, as `riseg gen` does). On each scene one episode of
+//! Algorithm 1 runs ([`run_episode`]) with the built-in segmenter and flow: the loop picks
+//! its own pushes, at most [`Config::max_pushes`]. Every captured frame `t` is scored
+//! against the simulator's ground truth twice: the static segmentation of that frame (the
+//! `static` rows) and the accumulated RISeg mask (the `riseg` rows; at `t = 0` both are the
+//! static segmentation). Row `t` averages the scenes that reached frame `t`. Timing is the
+//! median over steps of each stage (segmentation over all frames, the other stages over
+//! the frames after a push), with the flow on one thread.
+//!
+//! Scenes run in parallel (rayon) and are merged in scene order: the tables are the same
+//! for a seed whatever the thread count; only the times vary.
+
+use std::collections::BTreeMap;
+
+use rayon::prelude::*;
+use riseg_core::Config;
+use serde::{Deserialize, Serialize};
+
+use crate::{
+    episode::{EpisodeError, EpisodeFrame, RobotSetup, Stop, run_episode},
+    eval::{EvalReport, PushReport},
+    flow::{DisFlow, FlowError, FlowParams},
+    generate::{MAX_ATTEMPTS, scene_seed},
+    metrics::{ImageMetrics, MetricsError, PushAverages, image_metrics},
+    segment::{ClassicalSegmenter, SegmentError, SegmenterParams},
+    sim::{SimError, SimRig, SimScene},
+    tracker::{StageTimes, TrackError, Tracker},
+};
+
+/// Why a benchmark failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BenchError {
+    /// The simulator failed, or no attempt placed the objects.
+    #[error("scene {scene}: simulator: {source}")]
+    Sim {
+        /// Scene index.
+        scene: usize,
+        /// The cause.
+        source: SimError,
+    },
+    /// The loop failed.
+    #[error("scene {scene}: {source}")]
+    Episode {
+        /// Scene index.
+        scene: usize,
+        /// The cause.
+        source: EpisodeError,
+    },
+    /// The segmenter or flow could not be built.
+    #[error("setting up: {0}")]
+    Setup(String),
+}
+
+impl From<SegmentError> for BenchError {
+    fn from(e: SegmentError) -> Self {
+        Self::Setup(e.to_string())
+    }
+}
+
+impl From<FlowError> for BenchError {
+    fn from(e: FlowError) -> Self {
+        Self::Setup(e.to_string())
+    }
+}
+
+impl From<TrackError> for BenchError {
+    fn from(e: TrackError) -> Self {
+        Self::Setup(e.to_string())
+    }
+}
+
+/// What to run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BenchConfig {
+    /// Number of scenes.
+    pub scenes: usize,
+    /// Dataset seed.
+    pub seed: u64,
+    /// riseg-core settings.
+    pub core: Config,
+    /// Static segmenter settings.
+    pub segmenter: SegmenterParams,
+    /// Optical flow preset.
+    pub flow: FlowParams,
+}
+
+impl BenchConfig {
+    /// The paper's settings, the built-in segmenter and DIS "medium".
+    #[must_use]
+    pub fn new(scenes: usize, seed: u64) -> Self {
+        Self {
+            scenes,
+            seed,
+            core: Config::PAPER,
+            segmenter: SegmenterParams::default(),
+            flow: FlowParams::MEDIUM,
+        }
+    }
+}
+
+/// One scene's episode, scored.
+#[derive(Debug, Clone)]
+pub struct SceneResult {
+    /// Scene index.
+    pub scene: usize,
+    /// The simulator seed used.
+    pub sim_seed: u64,
+    /// Static segmentation metrics per frame.
+    pub static_metrics: Vec<ImageMetrics>,
+    /// RISeg mask metrics per frame.
+    pub riseg_metrics: Vec<ImageMetrics>,
+    /// Stage times per frame.
+    pub times: Vec<StageTimes>,
+    /// Why the episode ended.
+    pub stop: Stop,
+}
+
+/// Median milliseconds per step of each stage.
+pub type Timing = BTreeMap<String, f64>;
+
+/// The benchmark's result; its JSON form is `{"static": [ROW, ...], "riseg": [ROW, ...],
+/// "timing_ms": {"segment": .., "flow": .., "frames": .., "twists": .., "grouping": ..,
+/// "mask": ..}}` with ROW as in `riseg eval --json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BenchReport {
+    /// The static segmenter alone, per push.
+    #[serde(rename = "static")]
+    pub static_rows: Vec<PushReport>,
+    /// RISeg's accumulated mask, per push.
+    #[serde(rename = "riseg")]
+    pub riseg_rows: Vec<PushReport>,
+    /// Median time per step of each stage, milliseconds.
+    pub timing_ms: Timing,
+}
+
+/// Runs one scene's episode and scores every frame.
+///
+/// # Errors
+/// [`BenchError`] from the simulator or the loop.
+pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchError> {
+    let (sim, sim_seed) =
+        place_scene(scene_seed(cfg.seed, scene)).map_err(|source| BenchError::Sim { scene, source })?;
+    let mut rig = SimRig::new(sim);
+    let setup = RobotSetup {
+        robot_from_camera: rig.robot_from_camera,
+        geometry: rig.geometry,
+    };
+    let mut tracker = Tracker::new(
+        ClassicalSegmenter::new(cfg.segmenter)?,
+        DisFlow::new(cfg.flow)?.with_threads(1)?,
+        cfg.core,
+    )?;
+    let mut static_metrics = Vec::new();
+    let mut riseg_metrics = Vec::new();
+    let mut times = Vec::new();
+    let summary = run_episode(
+        &mut rig.camera,
+        &mut rig.robot,
+        &mut tracker,
+        &setup,
+        |f: &EpisodeFrame<'_>| {
+            let (s, r) = score_frame(f).map_err(|e| format!("scoring frame {}: {e}", f.t))?;
+            static_metrics.push(s);
+            riseg_metrics.push(r);
+            times.push(f.observation.times);
+            Ok(())
+        },
+    )
+    .map_err(|source| BenchError::Episode { scene, source })?;
+    Ok(SceneResult {
+        scene,
+        sim_seed,
+        static_metrics,
+        riseg_metrics,
+        times,
+        stop: summary.stop,
+    })
+}
+
+/// Metrics of the static segmentation and of the accumulated mask of one frame.
+///
+/// # Errors
+/// [`MetricsError`] when the frame has no ground truth (reported as a size mismatch) or
+/// too many objects.
+pub fn score_frame(f: &EpisodeFrame<'_>) -> Result<(ImageMetrics, ImageMetrics), MetricsError> {
+    let (w, h) = f.frame.size();
+    let empty: &[u16] = &[];
+    let truth = f.frame.truth.as_ref().map_or(empty, |t| t.as_slice());
+    let obs = f.observation;
+    Ok((
+        image_metrics(truth, &obs.static_seg.labels, w, h)?,
+        image_metrics(truth, &obs.mask, w, h)?,
+    ))
+}
+
+/// The first attempt seed from `seed` (as `riseg gen` derives them) whose objects the
+/// simulator can place.
+fn place_scene(seed: u64) -> Result<(SimScene, u64), SimError> {
+    let mut last = None;
+    for attempt in 0..MAX_ATTEMPTS {
+        let attempt_seed = if attempt == 0 {
+            seed
+        } else {
+            scene_seed(seed, attempt as usize)
+        };
+        match SimScene::new(attempt_seed) {
+            Ok(sim) => return Ok((sim, attempt_seed)),
+            Err(e @ SimError::Placement { .. }) => last = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    Err(last.unwrap_or(SimError::BadPush("no attempt was made".into())))
+}
+
+/// Runs every scene (in parallel) and builds the report; `on_scene` is called as each
+/// scene finishes (from worker threads).
+///
+/// # Errors
+/// The first [`BenchError`] in scene order.
+pub fn run_bench(
+    cfg: &BenchConfig,
+    on_scene: impl Fn(&SceneResult) + Sync,
+) -> Result<(BenchReport, Vec<SceneResult>), BenchError> {
+    let results: Vec<SceneResult> = (0..cfg.scenes)
+        .into_par_iter()
+        .map(|i| {
+            let r = run_scene(cfg, i)?;
+            on_scene(&r);
+            Ok(r)
+        })
+        .collect::<Result<_, BenchError>>()?;
+    Ok((report(&results), results))
+}
+
+/// Table 1 and the stage medians of finished scenes (module docs).
+#[must_use]
+pub fn report(results: &[SceneResult]) -> BenchReport {
+    let mut static_avg = PushAverages::new();
+    let mut riseg_avg = PushAverages::new();
+    let mut stage: [Vec<f64>; 6] = Default::default();
+    for r in results {
+        for (t, (s, m)) in r.static_metrics.iter().zip(&r.riseg_metrics).enumerate() {
+            static_avg.add(t as u32, s);
+            riseg_avg.add(t as u32, m);
+        }
+        for (t, times) in r.times.iter().enumerate() {
+            for (k, (all, v)) in stage.iter_mut().zip(times.values()).enumerate() {
+                // Segmentation runs on every frame; the other stages from frame 1 on.
+                if k == 0 || t > 0 {
+                    all.push(v);
+                }
+            }
+        }
+    }
+    let timing_ms = StageTimes::NAMES
+        .iter()
+        .zip(stage.iter_mut())
+        .map(|(name, v)| ((*name).to_owned(), median(v)))
+        .collect();
+    BenchReport {
+        static_rows: EvalReport::from_rows(&static_avg.rows()).pushes,
+        riseg_rows: EvalReport::from_rows(&riseg_avg.rows()).pushes,
+        timing_ms,
+    }
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let mid = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[mid]
+    } else {
+        0.5 * (v[mid - 1] + v[mid])
+    }
+}
+
+impl std::fmt::Display for BenchReport {
+    /// Table 1: static and RISeg rows side by side per push, then the stage medians.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "{:>4} {:>6} | {:^26} | {:^26}",
+            "", "", "static segmenter", "RISeg"
+        )?;
+        writeln!(
+            f,
+            "{:>4} {:>6} | {:>8}{:>9}{:>9} | {:>8}{:>9}{:>9}",
+            "push", "scenes", "overlap", "boundary", "obj>75", "overlap", "boundary", "obj>75"
+        )?;
+        for (s, r) in self.static_rows.iter().zip(&self.riseg_rows) {
+            writeln!(
+                f,
+                "{:>4} {:>6} | {:>8.1}{:>9.1}{:>9.1} | {:>8.1}{:>9.1}{:>9.1}",
+                s.push,
+                s.images,
+                s.overlap.f,
+                s.boundary.f,
+                s.objects_f75_pct,
+                r.overlap.f,
+                r.boundary.f,
+                r.objects_f75_pct
+            )?;
+        }
+        write!(f, "median ms per step:")?;
+        for (name, ms) in &self.timing_ms {
+            write!(f, " {name} {ms:.1}")?;
+        }
+        writeln!(f)
+    }
+}

@@ -1,0 +1,88 @@
+//! RGB-D frames and where they come from: the [`Camera`] trait, and [`SceneReplay`], which
+//! plays a recorded scene folder back as a camera.
+
+use riseg_core::Intrinsics;
+
+use crate::{
+    imageio::{DepthImage, Gray16Image, RgbImage},
+    scene::Scene,
+};
+
+/// One RGB-D frame, owned: colour, depth in metres (`<= 0` or not finite: no reading) and
+/// the intrinsics that go with them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CameraFrame {
+    /// 8-bit colour.
+    pub rgb: RgbImage,
+    /// Depth along the optical axis, metres, same size as `rgb`.
+    pub depth_m: DepthImage,
+    /// Pinhole intrinsics, pixels.
+    pub intrinsics: Intrinsics,
+    /// Ground-truth instance labels (0 = background), when the source knows them: the
+    /// simulator, or a recording with a `label/` folder. Only for scoring.
+    pub truth: Option<Gray16Image>,
+}
+
+impl CameraFrame {
+    /// `(width, height)` of the colour image, pixels.
+    #[must_use]
+    pub fn size(&self) -> (usize, usize) {
+        (self.rgb.width() as usize, self.rgb.height() as usize)
+    }
+}
+
+/// Why a camera gave no frame.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct CameraError(pub String);
+
+/// Something that captures aligned RGB-D frames: the simulator, a recorded scene, or a
+/// real sensor.
+pub trait Camera {
+    /// The next frame, taken once the scene is still.
+    ///
+    /// # Errors
+    /// [`CameraError`] when no frame can be had (device gone, recording exhausted).
+    fn capture(&mut self) -> Result<CameraFrame, CameraError>;
+}
+
+/// A recorded scene played back frame by frame (frame `t` is the scene after `t` pushes).
+#[derive(Debug, Clone)]
+pub struct SceneReplay<'a> {
+    scene: &'a Scene,
+    next: usize,
+}
+
+impl<'a> SceneReplay<'a> {
+    /// Plays `scene` from frame 0.
+    #[must_use]
+    pub const fn new(scene: &'a Scene) -> Self {
+        Self { scene, next: 0 }
+    }
+
+    /// Frame `t` with depth converted to metres by the scene's depth unit.
+    #[must_use]
+    pub fn frame(scene: &Scene, t: usize) -> Option<CameraFrame> {
+        let rgb = scene.rgb.get(t)?.clone();
+        let depth_m = scene.depth.get(t)?.map(|&d| scene.camera.depth_m(d));
+        Some(CameraFrame {
+            rgb,
+            depth_m,
+            intrinsics: scene.camera.intrinsics(),
+            truth: scene.labels.as_ref().and_then(|l| l.get(t)).cloned(),
+        })
+    }
+}
+
+impl Camera for SceneReplay<'_> {
+    fn capture(&mut self) -> Result<CameraFrame, CameraError> {
+        let frame = Self::frame(self.scene, self.next).ok_or_else(|| {
+            CameraError(format!(
+                "the recording has {} frames; all were played",
+                self.scene.frames()
+            ))
+        })?;
+        self.next += 1;
+        Ok(frame)
+    }
+}

@@ -1,0 +1,305 @@
+//! The perception half of Algorithm 1: static segmentation, optical flow and riseg-core's
+//! UpdateMask, frame after frame, with the time each stage took.
+//!
+//! # Contract
+//!
+//! [`Tracker::observe`] takes the frames of one scene in order. The first frame's mask is
+//! the static segmentation; every later frame's mask is UpdateMask of the previous mask,
+//! the flow from the previous colour image and the new static segmentation. The tracker
+//! keeps the previous frame and mask and nothing else: the same frames give the same masks
+//! (the segmenter, the flow and the core are deterministic for their seeds). Frames of one
+//! scene must share one size; a new scene starts with [`Tracker::reset`].
+//!
+//! The core's buffers are sized on the first frame and reused (no allocation per step in
+//! the core; the host allocates the flow field and the returned masks).
+
+use std::time::Instant;
+
+use riseg_core::{
+    Config, ImageView,
+    frames::{BodyFrame, MotionInput},
+    group::NO_GROUP,
+    pipeline::{Stage, StepReport, update_mask_observed},
+};
+
+use crate::{
+    camera::CameraFrame,
+    flow::{Flow, FlowError, FlowEstimator, RgbView},
+    segment::{RgbdFrame, SegmentError, Segmentation, StaticSegmenter},
+    workspace::WorkspaceBuf,
+};
+
+/// Why a tracker step failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum TrackError {
+    /// The static segmenter failed.
+    #[error("static segmentation: {0}")]
+    Segment(#[from] SegmentError),
+    /// The optical flow failed.
+    #[error("optical flow: {0}")]
+    Flow(#[from] FlowError),
+    /// riseg-core refused the step.
+    #[error("riseg-core: {0}")]
+    Core(#[from] riseg_core::Error),
+    /// The colour and depth images differ in size, or the frame differs from the previous.
+    #[error("frame is {got:?} pixels (colour) but {expected:?} was expected ({what})")]
+    FrameSize {
+        /// Expected `(width, height)`.
+        expected: (usize, usize),
+        /// Found `(width, height)`.
+        got: (usize, usize),
+        /// Which comparison failed.
+        what: &'static str,
+    },
+}
+
+/// Milliseconds each stage of one frame took (zero for stages that did not run, such as
+/// flow on the first frame).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageTimes {
+    /// Static segmentation.
+    pub segment_ms: f64,
+    /// Optical flow from the previous frame.
+    pub flow_ms: f64,
+    /// CreateFrames.
+    pub frames_ms: f64,
+    /// CalcBFIFs.
+    pub twists_ms: f64,
+    /// GroupBFIFs.
+    pub grouping_ms: f64,
+    /// CorrectMask.
+    pub mask_ms: f64,
+}
+
+impl StageTimes {
+    /// The stage names, in the order of [`StageTimes::values`].
+    pub const NAMES: [&'static str; 6] = ["segment", "flow", "frames", "twists", "grouping", "mask"];
+
+    /// The six times in the order of [`StageTimes::NAMES`].
+    #[must_use]
+    pub const fn values(&self) -> [f64; 6] {
+        [
+            self.segment_ms,
+            self.flow_ms,
+            self.frames_ms,
+            self.twists_ms,
+            self.grouping_ms,
+            self.mask_ms,
+        ]
+    }
+}
+
+/// A sampled body frame and the twist group it joined, for display.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroupedFrame {
+    /// The frame (pixel and metric corners at `t` and `t+1`).
+    pub frame: BodyFrame,
+    /// Index of its group, or `None` when it joined none.
+    pub group: Option<u16>,
+    /// Whether its group moved (non-zero twist).
+    pub moving: bool,
+}
+
+/// What UpdateMask did between the previous frame and this one.
+#[derive(Debug, Clone)]
+pub struct StepDetail {
+    /// Flow from the previous colour image to this one.
+    pub flow: Flow,
+    /// The core's report, stage by stage.
+    pub report: StepReport,
+    /// The body frames of the step with their groups.
+    pub frames: Vec<GroupedFrame>,
+}
+
+/// The tracker's output for one frame.
+#[derive(Debug, Clone)]
+pub struct Observation {
+    /// The static segmenter's labels and heatmap for this frame.
+    pub static_seg: Segmentation,
+    /// The accumulated (RISeg) mask for this frame, row-major, 0 = background.
+    pub mask: Vec<u16>,
+    /// The UpdateMask step that produced `mask`; `None` on a scene's first frame.
+    pub step: Option<StepDetail>,
+    /// Time per stage.
+    pub times: StageTimes,
+}
+
+#[derive(Debug)]
+struct Previous {
+    frame: CameraFrame,
+    mask: Vec<u16>,
+}
+
+/// Static segmenter + flow + UpdateMask over the frames of one scene (module docs).
+#[derive(Debug)]
+pub struct Tracker<S, F> {
+    segmenter: S,
+    flow: F,
+    cfg: Config,
+    workspace: Option<(usize, usize, WorkspaceBuf)>,
+    previous: Option<Previous>,
+}
+
+impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
+    /// A tracker with these stages and riseg-core settings.
+    ///
+    /// # Errors
+    /// [`TrackError::Core`] if `cfg` is invalid.
+    pub fn new(segmenter: S, flow: F, cfg: Config) -> Result<Self, TrackError> {
+        cfg.check()?;
+        Ok(Self {
+            segmenter,
+            flow,
+            cfg,
+            workspace: None,
+            previous: None,
+        })
+    }
+
+    /// The riseg-core settings.
+    #[must_use]
+    pub const fn config(&self) -> &Config {
+        &self.cfg
+    }
+
+    /// Forgets the previous frame: the next frame starts a new scene.
+    pub fn reset(&mut self) {
+        self.previous = None;
+    }
+
+    /// The last frame observed, if any.
+    #[must_use]
+    pub fn last_frame(&self) -> Option<&CameraFrame> {
+        self.previous.as_ref().map(|p| &p.frame)
+    }
+
+    /// The accumulated mask of the last frame observed, if any.
+    #[must_use]
+    pub fn last_mask(&self) -> Option<&[u16]> {
+        self.previous.as_ref().map(|p| p.mask.as_slice())
+    }
+
+    /// Segments `frame`, and unless it is the scene's first, carries the mask forward to it
+    /// (module docs). On error the tracker keeps its previous frame and mask.
+    ///
+    /// # Errors
+    /// [`TrackError`] naming the stage that failed, or the size that does not match.
+    pub fn observe(&mut self, frame: CameraFrame) -> Result<Observation, TrackError> {
+        let (w, h) = frame.size();
+        let depth_size = (
+            frame.depth_m.width() as usize,
+            frame.depth_m.height() as usize,
+        );
+        if depth_size != (w, h) {
+            return Err(TrackError::FrameSize {
+                expected: depth_size,
+                got: (w, h),
+                what: "colour against depth",
+            });
+        }
+        if let Some(prev) = &self.previous
+            && prev.frame.size() != (w, h)
+        {
+            return Err(TrackError::FrameSize {
+                expected: prev.frame.size(),
+                got: (w, h),
+                what: "against the previous frame",
+            });
+        }
+        let mut times = StageTimes::default();
+        let clock = Instant::now();
+        let rgbd = RgbdFrame::new(w, h, frame.rgb.as_slice(), frame.depth_m.as_slice())?;
+        let static_seg = self.segmenter.segment(&rgbd, &frame.intrinsics)?;
+        times.segment_ms = ms_since(clock);
+
+        let Some(prev) = &self.previous else {
+            let mask = static_seg.labels.clone();
+            self.previous = Some(Previous {
+                frame,
+                mask: mask.clone(),
+            });
+            return Ok(Observation {
+                static_seg,
+                mask,
+                step: None,
+                times,
+            });
+        };
+
+        let clock = Instant::now();
+        let flow = self.flow.estimate(
+            RgbView::new(w, h, prev.frame.rgb.as_slice().as_flattened())?,
+            RgbView::new(w, h, frame.rgb.as_slice().as_flattened())?,
+        )?;
+        times.flow_ms = ms_since(clock);
+
+        let (ws_w, ws_h, ws) = match self.workspace.take() {
+            Some(sized) if (sized.0, sized.1) == (w, h) => sized,
+            _ => (w, h, WorkspaceBuf::new(&self.cfg, w, h)),
+        };
+        let ws = self.workspace.insert((ws_w, ws_h, ws));
+        let input = MotionInput::new(
+            ImageView::packed(w, h, &prev.mask)?,
+            ImageView::packed(w, h, prev.frame.depth_m.as_slice())?,
+            ImageView::packed(w, h, frame.depth_m.as_slice())?,
+            ImageView::packed(w, h, flow.as_slice())?,
+            frame.intrinsics,
+        )?;
+        let static_t1 = ImageView::packed(w, h, &static_seg.labels)?;
+        let mut mask = vec![0u16; w * h];
+        let mut view = ws.2.view();
+        let mut stage_clock = Instant::now();
+        let report = update_mask_observed(
+            &input,
+            &static_t1,
+            &self.cfg,
+            &mut view,
+            &mut mask,
+            |stage| {
+                let spent = ms_since(stage_clock);
+                match stage {
+                    Stage::Frames => times.frames_ms = spent,
+                    Stage::Twists => times.twists_ms = spent,
+                    Stage::Grouping => times.grouping_ms = spent,
+                    Stage::Mask => times.mask_ms = spent,
+                }
+                stage_clock = Instant::now();
+            },
+        )?;
+        let count = report.frames.count;
+        let groups = view.groups.get(..report.grouping.count).unwrap_or(&[]);
+        let frames = view
+            .frames
+            .iter()
+            .zip(view.frame_group.iter())
+            .take(count)
+            .map(|(f, &g)| {
+                let info = (g != NO_GROUP).then(|| groups.get(usize::from(g))).flatten();
+                GroupedFrame {
+                    frame: *f,
+                    group: info.map(|_| g),
+                    moving: info.is_some_and(|i| i.moving),
+                }
+            })
+            .collect();
+        self.previous = Some(Previous {
+            frame,
+            mask: mask.clone(),
+        });
+        Ok(Observation {
+            static_seg,
+            mask,
+            step: Some(StepDetail {
+                flow,
+                report,
+                frames,
+            }),
+            times,
+        })
+    }
+}
+
+fn ms_since(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
+}

@@ -11,6 +11,8 @@
 //!    [`Config::min_segment_px`] join their largest neighbouring segment.
 //! 3. **Seed.** Each grouped frame marks its three tracked pixels at `t+1` with its group.
 //!    A segment holding seeds of two or more groups is split; others are left as they are.
+//!    Groups that did not move all count as one static group with the identity motion, so
+//!    frames that stayed still never split a segment between them.
 //! 4. **Grow.** In a split segment, regions grow breadth-first from the seeds to
 //!    4-neighbours whose observed flow matches the flow the group's rigid motion predicts
 //!    (back-project the source pixel at `t`, move it by the group's `M`, project; residual
@@ -217,7 +219,11 @@ pub fn correct_mask(
     let motions = &mut scratch.motions[..groups.groups.len()];
     let to_camera = Translation3::from(groups.space_origin.coords);
     for (m, g) in motions.iter_mut().zip(groups.groups) {
-        *m = to_camera * g.twist.exp() * to_camera.inverse();
+        *m = if g.moving {
+            to_camera * g.twist.exp() * to_camera.inverse()
+        } else {
+            Pose::identity()
+        };
     }
 
     // 4. Grow, in every segment with two or more groups.
@@ -225,7 +231,13 @@ pub fn correct_mask(
     let mut head = 0;
     let mut tail = 0;
     for f in 0..groups.frames.len() {
-        let (Some(frame), Some(&g)) = (groups.frames.get(f), groups.frame_group.get(f)) else {
+        let (Some(frame), Some(g)) = (
+            groups.frames.get(f),
+            groups
+                .frame_group
+                .get(f)
+                .and_then(|&g| seed_group(groups, g)),
+        ) else {
             continue;
         };
         for px in frame.px_t1 {
@@ -557,6 +569,21 @@ const MIN_SEEDS: u32 = 3;
 
 /// Writes sorted `(segment, group, seed count)` entries of the grouped frames' tracked
 /// pixels to the front of `seeds`, one per pair with at least [`MIN_SEEDS`]; returns how many.
+/// The group a frame of group `g` seeds: `None` for [`NO_GROUP`]; every group that did
+/// not move seeds as the first such group (with the identity motion), so that frames that
+/// all stayed still never split a segment, whichever static groups they fell into.
+fn seed_group(groups: &FrameGroups<'_>, g: u16) -> Option<u16> {
+    let info = groups.groups.get(usize::from(g))?;
+    if info.moving {
+        return Some(g);
+    }
+    groups
+        .groups
+        .iter()
+        .position(|i| !i.moving)
+        .and_then(|i| u16::try_from(i).ok())
+}
+
 fn collect_seeds(
     grid: Grid,
     groups: &FrameGroups<'_>,
@@ -565,9 +592,9 @@ fn collect_seeds(
 ) -> usize {
     let mut len = 0;
     for (frame, &g) in groups.frames.iter().zip(groups.frame_group) {
-        if g == NO_GROUP {
+        let Some(g) = seed_group(groups, g) else {
             continue;
-        }
+        };
         for px in frame.px_t1 {
             let seg = grid
                 .locate(px)

@@ -482,15 +482,61 @@ pub(crate) mod tests {
         let mut out = vec![0u16; w * h];
         let static_t1 = ImageView::packed(w, h, &merged_t1).unwrap();
         let mut seen = Vec::new();
-        let report = update_mask_observed(&input, &static_t1, &cfg, &mut ws.view(), &mut out, |s| {
-            seen.push(s);
-        })
-        .unwrap();
+        let report =
+            update_mask_observed(&input, &static_t1, &cfg, &mut ws.view(), &mut out, |s| {
+                seen.push(s);
+            })
+            .unwrap();
         assert_eq!(
             seen,
             [Stage::Frames, Stage::Twists, Stage::Grouping, Stage::Mask]
         );
         assert_eq!((out, report), (plain, plain_report));
+    }
+
+    #[test]
+    fn frames_in_two_static_groups_do_not_split_their_segment() {
+        use crate::{group::GroupInfo, mask::FrameGroups};
+        let r = render(&row(&[Pose::identity(); 2]), 160, 120);
+        let (w, h) = (r.width, r.height);
+        let cfg = Config::PAPER;
+        let merged: Vec<u16> = r.labels_t.iter().map(|&l| u16::from(l != 0)).collect();
+        let input = MotionInput::new(
+            ImageView::packed(w, h, &merged).unwrap(),
+            ImageView::packed(w, h, &r.depth_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t1).unwrap(),
+            ImageView::packed(w, h, &r.flow).unwrap(),
+            r.intrinsics,
+        )
+        .unwrap();
+        let mut ws = OwnedWorkspace::new(&cfg, w, h);
+        let mut view = ws.view();
+        let set = create_frames(&input, &cfg, view.samples, view.frames).unwrap();
+        let frames = &view.frames[..set.count];
+        assert!(frames.len() > 20, "{set:?}");
+        // Both groups stand still; the split between them runs diagonally across the row.
+        let frame_group: Vec<u16> = frames
+            .iter()
+            .map(|f| u16::from(f.px_t[0][0] + f.px_t[0][1] > (w + h) as u32 / 2))
+            .collect();
+        let still = GroupInfo {
+            frames: 1,
+            twist: Twist::ZERO,
+            moving: false,
+            label: 1,
+        };
+        let groups = FrameGroups {
+            frames,
+            frame_group: &frame_group,
+            groups: &[still, still],
+            space_origin: set.space_origin,
+        };
+        let mut out = vec![0u16; w * h];
+        let static_t1 = ImageView::packed(w, h, &merged).unwrap();
+        let report =
+            correct_mask(&input, &static_t1, &groups, &cfg, &mut view.mask, &mut out).unwrap();
+        assert_eq!(report.split_segments, 0, "{report:?}");
+        assert_eq!(distinct_labels(&out), 1);
     }
 
     #[test]

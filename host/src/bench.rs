@@ -144,8 +144,8 @@ pub struct BenchReport {
 /// # Errors
 /// [`BenchError`] from the simulator or the loop.
 pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchError> {
-    let (sim, sim_seed) =
-        place_scene(scene_seed(cfg.seed, scene)).map_err(|source| BenchError::Sim { scene, source })?;
+    let (sim, sim_seed) = place_scene(scene_seed(cfg.seed, scene))
+        .map_err(|source| BenchError::Sim { scene, source })?;
     let mut rig = SimRig::new(sim);
     let setup = RobotSetup {
         robot_from_camera: rig.robot_from_camera,

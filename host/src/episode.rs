@@ -138,14 +138,23 @@ where
         let (w, h) = frame.size();
         let scratch = action_buf.get_or_insert_with(|| ActionBuf::new(&cfg, w, h));
         let action = find_action(
-            &ImageView::packed(w, h, &observation.static_seg.heatmap).map_err(EpisodeError::Action)?,
+            &ImageView::packed(w, h, &observation.static_seg.heatmap)
+                .map_err(EpisodeError::Action)?,
             &ImageView::packed(w, h, frame.depth_m.as_slice()).map_err(EpisodeError::Action)?,
             &frame.intrinsics,
             &cfg,
             scratch.view(),
         )
         .map_err(EpisodeError::Action)?;
-        let decision = decide(&mut state, &cfg, &action, frame, &observation.mask, robot, setup);
+        let decision = decide(
+            &mut state,
+            &cfg,
+            &action,
+            frame,
+            &observation.mask,
+            robot,
+            setup,
+        );
         on_frame(&EpisodeFrame {
             t,
             frame,
@@ -246,7 +255,10 @@ pub fn object_edge_px(mask: &[u16], width: usize, height: usize, push: &Push) ->
     let step = [0.5 * dx / len, 0.5 * dy / len];
     let mut inside = target;
     for i in 1..=2 * (width + height) {
-        let p = [target[0] + step[0] * i as f32, target[1] + step[1] * i as f32];
+        let p = [
+            target[0] + step[0] * i as f32,
+            target[1] + step[1] * i as f32,
+        ];
         if label_at(p) != Some(label) {
             break;
         }

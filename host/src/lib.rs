@@ -14,6 +14,8 @@
 
 pub mod bench;
 pub mod camera;
+pub mod demo;
+pub mod draw;
 pub mod episode;
 pub mod eval;
 pub mod flow;

@@ -6,31 +6,13 @@
 //! labels shows a black tile there.
 
 use crate::{
+    draw::{Clip, arrow, label_colour},
     imageio::{Image, RgbImage},
     scene::Scene,
 };
 
 const MISSING_DEPTH: [u8; 3] = [110, 0, 0];
 const ARROW: [u8; 3] = [255, 235, 0];
-
-/// A distinct, stable colour per instance label (golden-ratio hues); 0 is black.
-#[must_use]
-pub fn label_colour(label: u16) -> [u8; 3] {
-    if label == 0 {
-        return [0, 0, 0];
-    }
-    let h = (f32::from(label) * 0.618_034).fract() * 6.0;
-    let x = 1.0 - ((h % 2.0) - 1.0).abs();
-    let (r, g, b) = match h as u32 {
-        0 => (1.0, x, 0.0),
-        1 => (x, 1.0, 0.0),
-        2 => (0.0, 1.0, x),
-        3 => (0.0, x, 1.0),
-        4 => (x, 0.0, 1.0),
-        _ => (1.0, 0.0, x),
-    };
-    [r, g, b].map(|c: f32| (40.0 + 215.0 * c) as u8)
-}
 
 /// The preview image of `scene` (see the module docs). Its size is `3·w/s × 2·h/s` with
 /// `s = 2` (or 1 for images narrower or lower than 2 pixels).
@@ -99,48 +81,13 @@ pub fn preview(scene: &Scene) -> RgbImage {
         let scale = 1.0 / s as f32;
         let from = [a.start_px[0] * scale, a.start_px[1] * scale];
         let to = [end_px.x * scale, end_px.y * scale];
-        draw_arrow(&mut out, from, to, tw, th);
+        let tile = Clip {
+            x0: 0,
+            y0: 0,
+            x1: tw,
+            y1: th,
+        };
+        arrow(&mut out, tile, from, to, ARROW, 1);
     }
     out
-}
-
-/// Draws an arrow from `from` to `to` (pixels), clipped to the `tw × th` top-left tile.
-fn draw_arrow(img: &mut RgbImage, from: [f32; 2], to: [f32; 2], tw: u32, th: u32) {
-    let (dx, dy) = (to[0] - from[0], to[1] - from[1]);
-    let len = (dx * dx + dy * dy).sqrt();
-    if !len.is_finite() || len < 1e-3 {
-        return;
-    }
-    let (ux, uy) = (dx / len, dy / len);
-    let head = (0.35 * len).clamp(3.0, 8.0);
-    // Shaft, then the two barbs at ±150° from the direction.
-    let (c, s) = (0.866_f32, 0.5_f32);
-    let barbs = [
-        [
-            to[0] - head * (c * ux - s * uy),
-            to[1] - head * (s * ux + c * uy),
-        ],
-        [
-            to[0] - head * (c * ux + s * uy),
-            to[1] - head * (-s * ux + c * uy),
-        ],
-    ];
-    let mut segments = vec![(from, to)];
-    segments.extend(barbs.iter().map(|&b| (to, b)));
-    let width = img.width() as usize;
-    for (a, b) in segments {
-        let n = ((b[0] - a[0]).abs().max((b[1] - a[1]).abs()).ceil() as usize).max(1);
-        for i in 0..=n {
-            let t = i as f32 / n as f32;
-            let (x, y) = (a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t);
-            for (ox, oy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)] {
-                let (px, py) = ((x + ox).round(), (y + oy).round());
-                let inside = px >= 0.0 && py >= 0.0 && (px as u32) < tw && (py as u32) < th;
-                let index = py as usize * width + px as usize;
-                if let Some(p) = img.as_mut_slice().get_mut(index).filter(|_| inside) {
-                    *p = ARROW;
-                }
-            }
-        }
-    }
 }

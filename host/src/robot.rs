@@ -230,11 +230,23 @@ mod tests {
         let edge_cam = t.inverse() * edge_robot;
         // Pointing along robot +y, but tilted down in the camera's view.
         let dir_cam = t.inverse().rotation * Vector3::new(0.0, 1.0, -0.3).normalize();
-        let cmd = plan_push(&push_towards(dir_cam, 0.02), &edge_cam, &t, &GEOMETRY, &limits())
-            .unwrap();
-        assert!((cmd.direction_robot - Vector3::y()).norm() < 1e-5, "{cmd:?}");
+        let cmd = plan_push(
+            &push_towards(dir_cam, 0.02),
+            &edge_cam,
+            &t,
+            &GEOMETRY,
+            &limits(),
+        )
+        .unwrap();
+        assert!(
+            (cmd.direction_robot - Vector3::y()).norm() < 1e-5,
+            "{cmd:?}"
+        );
         let expected_start = Point3::new(0.55, 0.02 - 0.01, 0.02);
-        assert!((cmd.start_robot_m - expected_start).norm() < 1e-5, "{cmd:?}");
+        assert!(
+            (cmd.start_robot_m - expected_start).norm() < 1e-5,
+            "{cmd:?}"
+        );
         assert!((cmd.length_m - 0.03).abs() < 1e-6);
         assert!((cmd.end_robot_m() - Point3::new(0.55, 0.04, 0.02)).norm() < 1e-5);
         // Not the identity: the camera-frame edge is far from its robot-frame coordinates.
@@ -246,8 +258,14 @@ mod tests {
         let t = robot_from_camera();
         let edge_cam = t.inverse() * Point3::new(0.5, 0.0, 0.008);
         let dir_cam = t.inverse().rotation * Vector3::x();
-        let cmd = plan_push(&push_towards(dir_cam, 0.02), &edge_cam, &t, &GEOMETRY, &limits())
-            .unwrap();
+        let cmd = plan_push(
+            &push_towards(dir_cam, 0.02),
+            &edge_cam,
+            &t,
+            &GEOMETRY,
+            &limits(),
+        )
+        .unwrap();
         assert!((cmd.start_robot_m.z - 0.007).abs() < 1e-5, "{cmd:?}");
     }
 
@@ -256,8 +274,8 @@ mod tests {
         let t = robot_from_camera();
         let along_x = t.inverse().rotation * Vector3::x();
         let far = t.inverse() * Point3::new(0.5, 0.9, 0.04);
-        let err = plan_push(&push_towards(along_x, 0.02), &far, &t, &GEOMETRY, &limits())
-            .unwrap_err();
+        let err =
+            plan_push(&push_towards(along_x, 0.02), &far, &t, &GEOMETRY, &limits()).unwrap_err();
         assert!(matches!(
             err,
             PushRefused::OutsideWorkspace { which: "start", .. }
@@ -278,13 +296,25 @@ mod tests {
         );
         let vertical = t.inverse().rotation * Vector3::z();
         assert_eq!(
-            plan_push(&push_towards(vertical, 0.02), &near, &t, &GEOMETRY, &limits()),
+            plan_push(
+                &push_towards(vertical, 0.02),
+                &near,
+                &t,
+                &GEOMETRY,
+                &limits()
+            ),
             Err(PushRefused::NotFinite)
         );
         // Ends outside: starts near the +x edge of the box, pushing further out.
         let edge = t.inverse() * Point3::new(0.79, 0.0, 0.04);
         assert!(matches!(
-            plan_push(&push_towards(along_x, 0.02), &edge, &t, &GEOMETRY, &limits()),
+            plan_push(
+                &push_towards(along_x, 0.02),
+                &edge,
+                &t,
+                &GEOMETRY,
+                &limits()
+            ),
             Err(PushRefused::OutsideWorkspace { which: "end", .. })
         ));
     }

@@ -74,7 +74,8 @@ pub struct StageTimes {
 
 impl StageTimes {
     /// The stage names, in the order of [`StageTimes::values`].
-    pub const NAMES: [&'static str; 6] = ["segment", "flow", "frames", "twists", "grouping", "mask"];
+    pub const NAMES: [&'static str; 6] =
+        ["segment", "flow", "frames", "twists", "grouping", "mask"];
 
     /// The six times in the order of [`StageTimes::NAMES`].
     #[must_use]
@@ -275,7 +276,9 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
             .zip(view.frame_group.iter())
             .take(count)
             .map(|(f, &g)| {
-                let info = (g != NO_GROUP).then(|| groups.get(usize::from(g))).flatten();
+                let info = (g != NO_GROUP)
+                    .then(|| groups.get(usize::from(g)))
+                    .flatten();
                 GroupedFrame {
                     frame: *f,
                     group: info.map(|_| g),

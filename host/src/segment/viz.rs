@@ -1,33 +1,13 @@
 //! A picture for people: colour | labels | heatmap, side by side, to check a segmentation
 //! by eye.
 //!
-//! Labels: background black, each segment a distinct saturated colour (hue by the golden
-//! angle, so neighbouring labels differ). Heatmap: below 120 grey (brightness `v`/2, the
+//! Labels: background black, each segment a distinct colour ([`label_colour`]). Heatmap: below 120 grey (brightness `v`/2, the
 //! table is dark), 120-149 orange to yellow (uncertain), 150-255 green getting lighter
 //! (certain).
 
 use super::{HEAT_CERTAIN, HEAT_UNCERTAIN, Segmentation};
 
-/// A colour for `label` (`0` black).
-#[must_use]
-pub fn label_colour(label: u16) -> [u8; 3] {
-    if label == 0 {
-        return [0, 0, 0];
-    }
-    let hue = (f32::from(label) * 137.507_77).rem_euclid(360.0);
-    let sector = hue / 60.0;
-    let f = sector.fract();
-    let (hi, lo, up, down) = (255.0, 60.0, 60.0 + 195.0 * f, 255.0 - 195.0 * f);
-    let c = match sector as u32 {
-        0 => [hi, up, lo],
-        1 => [down, hi, lo],
-        2 => [lo, hi, up],
-        3 => [lo, down, hi],
-        4 => [up, lo, hi],
-        _ => [hi, lo, down],
-    };
-    c.map(|v| v as u8)
-}
+pub use crate::draw::label_colour;
 
 /// A colour for heat value `v` (module docs).
 #[must_use]

@@ -8,7 +8,12 @@
 //! 2. **Intersect.** The static mask at `t+1` decides foreground. Foreground pixels are
 //!    keyed by (carried label, static label); the 4-connected components of equal keys are
 //!    the segments, so a split in either mask is kept. Segments smaller than
-//!    [`Config::min_segment_px`] join their largest neighbouring segment.
+//!    [`Config::min_segment_px`] join their largest neighbouring segment. Within one
+//!    static segment, a component keeps its own segment only when its carried label is an
+//!    object and it holds at least half of that label's carried foreground pixels (the
+//!    static mask merged that object with another); slivers that flow errors carry across
+//!    a boundary, and pixels nothing was carried to, join the largest component of their
+//!    static segment.
 //! 3. **Seed.** Each grouped frame marks its three tracked pixels at `t+1` with its group.
 //!    A segment holding seeds of two or more groups is split; others are left as they are.
 //!    Groups that did not move all count as one static group with the identity motion, so
@@ -33,7 +38,7 @@ use crate::{
     Config, Error, ImageView, Pose,
     error::{Buffer, check_len},
     frames::{BodyFrame, MotionInput},
-    group::{GroupInfo, NO_GROUP},
+    group::GroupInfo,
     image::valid_depth,
     math::{Real, round},
 };
@@ -212,6 +217,7 @@ pub fn correct_mask(
         }
     }
     let count = label_segments(grid, key, cfg.min_segment_px, segment, queue, &mut segs)?;
+    absorb_fragments(segment, count, cfg.min_segment_px, queue, &mut segs);
 
     // 3. Seed: (segment, group, count) runs.
     let seed_count = collect_seeds(grid, groups, segment, &mut *scratch.seeds);
@@ -564,12 +570,79 @@ fn label_segments(
     Ok(count)
 }
 
+/// Step 2's fragment rule: a component of (carried, static) keeps its own segment only
+/// when it holds more than this share of the carried label's foreground pixels.
+const OBJECT_SHARE: u32 = 2;
+
+/// Step 2, fragments: within one static segment, a component keeps its own segment only
+/// when its carried label is an object (non-zero) and the component holds at least half of
+/// that label's carried foreground pixels (it is the object the static mask merged with
+/// another). Slivers that flow errors carry across a boundary, and pixels nothing was
+/// carried to, join the largest component of their static segment instead. `dominant`
+/// (indexed by static label) and `segs.target` (indexed by carried label) are scratch.
+fn absorb_fragments(
+    segment: &mut [u32],
+    count: usize,
+    min_px: u32,
+    dominant: &mut [u32],
+    segs: &mut Segments<'_>,
+) {
+    let carried_of = |k: u32| (k >> 16) as usize;
+    let static_of = |k: u32| (k & 0xFFFF) as usize;
+    segs.target.fill(0);
+    for s in dominant.iter_mut().take(MAX_SEGMENTS + 1) {
+        *s = NONE;
+    }
+    for i in 1..=count {
+        let (Some(&size), Some(&k)) = (segs.size.get(i), segs.key.get(i)) else {
+            continue;
+        };
+        if let Some(t) = segs.target.get_mut(carried_of(k)) {
+            *t = t.saturating_add(size);
+        }
+        if size < min_px {
+            continue;
+        }
+        if let Some(d) = dominant.get_mut(static_of(k)) {
+            let current = if *d == NONE {
+                0
+            } else {
+                segs.size.get(*d as usize).copied().unwrap_or(0)
+            };
+            if *d == NONE || size > current {
+                *d = i as u32;
+            }
+        }
+    }
+    // segs.key now maps each component to the segment it becomes.
+    for i in 1..=count {
+        let (Some(&size), Some(&k)) = (segs.size.get(i), segs.key.get(i)) else {
+            continue;
+        };
+        let carried = carried_of(k);
+        let total = segs.target.get(carried).copied().unwrap_or(0);
+        let object = carried != 0 && size.saturating_mul(OBJECT_SHARE) >= total;
+        let into = match dominant.get(static_of(k)) {
+            Some(&d) if d != NONE && !object => d,
+            _ => i as u32,
+        };
+        if let Some(slot) = segs.key.get_mut(i) {
+            *slot = into;
+        }
+    }
+    for s in segment.iter_mut() {
+        if *s != 0
+            && let Some(&into) = segs.key.get(*s as usize)
+        {
+            *s = into;
+        }
+    }
+}
+
 /// A group counts in a segment only with at least this many seed pixels (one frame).
 const MIN_SEEDS: u32 = 3;
 
-/// Writes sorted `(segment, group, seed count)` entries of the grouped frames' tracked
-/// pixels to the front of `seeds`, one per pair with at least [`MIN_SEEDS`]; returns how many.
-/// The group a frame of group `g` seeds: `None` for [`NO_GROUP`]; every group that did
+/// The group a frame of group `g` seeds: `None` for [`crate::group::NO_GROUP`]; every group that did
 /// not move seeds as the first such group (with the identity motion), so that frames that
 /// all stayed still never split a segment, whichever static groups they fell into.
 fn seed_group(groups: &FrameGroups<'_>, g: u16) -> Option<u16> {
@@ -584,6 +657,8 @@ fn seed_group(groups: &FrameGroups<'_>, g: u16) -> Option<u16> {
         .and_then(|i| u16::try_from(i).ok())
 }
 
+/// Writes sorted `(segment, group, seed count)` entries of the grouped frames' tracked
+/// pixels to the front of `seeds`, one per pair with at least [`MIN_SEEDS`]; returns how many.
 fn collect_seeds(
     grid: Grid,
     groups: &FrameGroups<'_>,

@@ -540,6 +540,54 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn a_sliver_carried_across_a_boundary_joins_the_object_it_landed_on() {
+        let r = render(&row(&[Pose::identity(); 2]), 320, 240);
+        let (w, h) = (r.width, r.height);
+        // The accumulated mask is right except for a 10 px strip of box 1 along the
+        // boundary that carries box 2's label, as flow errors at a boundary do.
+        let right_edge_of_1 = (0..w)
+            .filter(|&x| (0..h).any(|y| r.labels_t[y * w + x] == 1))
+            .max()
+            .unwrap();
+        let carried: Vec<u16> = (0..w * h)
+            .map(|i| {
+                let (x, l) = (i % w, r.labels_t[i]);
+                if l == 1 && x + 10 > right_edge_of_1 {
+                    2
+                } else {
+                    l
+                }
+            })
+            .collect();
+        let sliver = carried
+            .iter()
+            .zip(&r.labels_t)
+            .filter(|(c, t)| c != t)
+            .count();
+        assert!(
+            sliver >= 2 * Config::PAPER.min_segment_px as usize,
+            "{sliver} px"
+        );
+        let input = MotionInput::new(
+            ImageView::packed(w, h, &carried).unwrap(),
+            ImageView::packed(w, h, &r.depth_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t1).unwrap(),
+            ImageView::packed(w, h, &r.flow).unwrap(),
+            r.intrinsics,
+        )
+        .unwrap();
+        let cfg = Config::PAPER;
+        let mut ws = OwnedWorkspace::new(&cfg, w, h);
+        let mut out = vec![0u16; w * h];
+        let static_t1 = ImageView::packed(w, h, &r.labels_t1).unwrap();
+        update_mask(&input, &static_t1, &cfg, &mut ws.view(), &mut out).unwrap();
+        assert_eq!(distinct_labels(&out), 2);
+        for (id, iou) in best_ious(&r.labels_t1, &out) {
+            assert!(iou >= 0.99, "object {id}: IoU {iou:.3}");
+        }
+    }
+
+    #[test]
     fn nothing_moved_changes_nothing() {
         let r = render(&row(&[Pose::identity(); 3]), 320, 240);
         let (out, report) = step_merged(&r, &Config::PAPER);

@@ -175,25 +175,12 @@ mod tests {
         // Clipped at x = 10: nothing drawn to the right.
         assert!((10..20).all(|x| img.get(x, 5) == Some(&[0; 3])));
         let mut img = RgbImage::from_fn(20, 10, |_, _| [0; 3]);
-        arrow(
-            &mut img,
-            Clip::all(&img),
-            [2.0, 5.0],
-            [15.0, 5.0],
-            [9; 3],
-            1,
-        );
+        let all = Clip::all(&img);
+        arrow(&mut img, all, [2.0, 5.0], [15.0, 5.0], [9; 3], 1);
         assert_eq!(img.get(15, 5), Some(&[9; 3]));
         // Barbs go back from the tip, above and below the shaft.
         assert!(img.get(12, 4) == Some(&[9; 3]) || img.get(12, 3) == Some(&[9; 3]));
-        arrow(
-            &mut img,
-            Clip::all(&img),
-            [f32::NAN, 0.0],
-            [1.0, 1.0],
-            [1; 3],
-            3,
-        );
+        arrow(&mut img, all, [f32::NAN, 0.0], [1.0, 1.0], [1; 3], 3);
     }
 
     #[test]

@@ -75,6 +75,10 @@ pub struct Config {
     /// Largest distance between observed and rigid-motion-predicted flow for a pixel to
     /// join a group while regions grow, pixels.
     pub grow_tol_px: Real,
+    /// Twist distance below which two moving groups from different segments count as one
+    /// body and their segments merge where they touch (over-segmentation; beyond the
+    /// paper), metres; `0` turns the merge off.
+    pub merge_twist_m: Real,
 
     // --- FindAction ---------------------------------------------------------------------
     /// Heatmap value from which a pixel is "certain" (paper `l_u`), 0-255.
@@ -122,6 +126,7 @@ impl Config {
         min_group_frames: 5,
         min_segment_px: 150,
         grow_tol_px: 2.0,
+        merge_twist_m: 0.002,
         certain_from: 150,
         uncertain_from: 120,
         max_clusters: 8,
@@ -159,6 +164,8 @@ impl Config {
             && (0.0..self.frame_max_side_m).contains(&self.frame_min_side_m)
             && self.frame_min_sin.is_finite()
             && (0.0..1.0).contains(&self.frame_min_sin)
+            && self.merge_twist_m.is_finite()
+            && self.merge_twist_m >= 0.0
             && self.link_posterior > 0.0
             && self.link_posterior < 1.0
             && self.frame_samples >= 3

@@ -25,9 +25,13 @@
 //!    with the smallest residual. Rotations are handled because `M` is a full rigid motion.
 //! 5. **Label.** Every group but the largest (most seeds) of a split segment gets a new
 //!    label; the largest keeps the segment's label, and so do pixels no group explains.
-//!    The output segments are the 4-connected components of these labels (two objects
-//!    that both stayed still share the zero motion but not a region), and components
-//!    smaller than [`Config::min_segment_px`] join their largest neighbour.
+//! 6. **Merge** (over-segmentation, beyond the paper). Two moving groups whose frames lay
+//!    in different segments at `t` but whose twists are closer than
+//!    [`Config::merge_twist_m`] are one body seen as two segments: their labels unite.
+//! 7. **Components.** The output segments are the 4-connected components of these labels
+//!    (two objects that both stayed still share the zero motion but not a region, and
+//!    merged labels that do not touch stay apart), and components smaller than
+//!    [`Config::min_segment_px`] join their largest neighbour.
 //!
 //! Output labels are distinct positive ids, increasing in scan order of the final segments
 //! (with gaps where small fragments merged away); background is `0`.
@@ -136,6 +140,8 @@ pub struct MaskReport {
     pub segments: usize,
     /// Segments that two or more groups split.
     pub split_segments: usize,
+    /// Label unions made by the same-motion merge (step 6).
+    pub merged_segments: usize,
     /// Largest label written.
     pub max_label: u16,
 }
@@ -371,6 +377,7 @@ pub fn correct_mask(
             }
         }
     }
+    let merged_segments = merge_same_motion(seeds, groups, cfg, next, segs.target, labels_t1);
     for (k, &l) in key.iter_mut().zip(labels_t1.iter()) {
         *k = u32::from(l);
     }
@@ -383,6 +390,7 @@ pub fn correct_mask(
     Ok(MaskReport {
         segments: count,
         split_segments,
+        merged_segments,
         max_label,
     })
 }
@@ -637,6 +645,77 @@ fn absorb_fragments(
             *s = into;
         }
     }
+}
+
+/// Step 6 (module docs): unites the labels of moving groups from different segments at
+/// `t` whose twists are closer than [`Config::merge_twist_m`], relabelling `labels` (labels
+/// below `next`); `parent` is scratch of at least `next` entries. Returns the merges made.
+fn merge_same_motion(
+    seeds: &[[u32; 3]],
+    groups: &FrameGroups<'_>,
+    cfg: &Config,
+    next: u32,
+    parent: &mut [u32],
+    labels: &mut [u16],
+) -> usize {
+    if !(cfg.merge_twist_m > 0.0) {
+        return 0;
+    }
+    let Some(parent) = parent.get_mut(..next as usize) else {
+        return 0;
+    };
+    for (i, p) in parent.iter_mut().enumerate() {
+        *p = i as u32;
+    }
+    let root = |parent: &mut [u32], mut l: u32| {
+        for _ in 0..parent.len() {
+            let p = parent.get(l as usize).copied().unwrap_or(l);
+            if p == l {
+                break;
+            }
+            let grand = parent.get(p as usize).copied().unwrap_or(p);
+            if let Some(slot) = parent.get_mut(l as usize) {
+                *slot = grand;
+            }
+            l = grand;
+        }
+        l
+    };
+    // The output label of a seed entry, and its group if that group moved.
+    let moving = |e: &[u32; 3]| {
+        let g = groups.groups.get(e[1] as usize).filter(|g| g.moving)?;
+        let label = if groups_in(seeds, e[0]).len() >= 2 {
+            e[2]
+        } else {
+            e[0]
+        };
+        Some((label, g))
+    };
+    let mut merges = 0;
+    for (i, a) in seeds.iter().enumerate() {
+        let Some((la, ga)) = moving(a) else { continue };
+        for b in seeds.get(i + 1..).unwrap_or(&[]) {
+            let Some((lb, gb)) = moving(b) else { continue };
+            if ga.label == gb.label
+                || ga.twist.distance(&gb.twist, cfg.length_scale_m) >= cfg.merge_twist_m
+            {
+                continue;
+            }
+            let (ra, rb) = (root(parent, la), root(parent, lb));
+            if ra != rb {
+                if let Some(slot) = parent.get_mut(ra.max(rb) as usize) {
+                    *slot = ra.min(rb);
+                }
+                merges += 1;
+            }
+        }
+    }
+    if merges > 0 {
+        for l in labels.iter_mut() {
+            *l = root(parent, u32::from(*l)) as u16;
+        }
+    }
+    merges
 }
 
 /// A group counts in a segment only with at least this many seed pixels (one frame).

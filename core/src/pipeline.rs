@@ -587,6 +587,61 @@ pub(crate) mod tests {
         }
     }
 
+    /// One sliding box that the accumulated and the static masks both cut in two halves.
+    fn over_segmented_slide(cfg: &Config) -> (Vec<u16>, StepReport) {
+        let boxes = [box_at(0.0, 0.0, 0.6, [0.05, 0.035], 1)];
+        let mut boxes = boxes;
+        boxes[0].motion = slide_y(0.012);
+        let r = render(&boxes, 320, 240);
+        let (w, h) = (r.width, r.height);
+        let halves = |labels: &[u16]| -> Vec<u16> {
+            let mid = {
+                let xs: Vec<usize> = (0..w * h)
+                    .filter(|&i| labels[i] != 0)
+                    .map(|i| i % w)
+                    .collect();
+                (xs.iter().min().unwrap() + xs.iter().max().unwrap()) / 2
+            };
+            (0..w * h)
+                .map(|i| match labels[i] {
+                    0 => 0,
+                    _ if i % w < mid => 1,
+                    _ => 2,
+                })
+                .collect()
+        };
+        let (split_t, split_t1) = (halves(&r.labels_t), halves(&r.labels_t1));
+        let input = MotionInput::new(
+            ImageView::packed(w, h, &split_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t1).unwrap(),
+            ImageView::packed(w, h, &r.flow).unwrap(),
+            r.intrinsics,
+        )
+        .unwrap();
+        let mut ws = OwnedWorkspace::new(cfg, w, h);
+        let mut out = vec![0u16; w * h];
+        let static_t1 = ImageView::packed(w, h, &split_t1).unwrap();
+        let report = update_mask(&input, &static_t1, cfg, &mut ws.view(), &mut out).unwrap();
+        (out, report)
+    }
+
+    #[test]
+    fn two_segments_moving_with_one_twist_merge() {
+        let (out, report) = over_segmented_slide(&Config::PAPER);
+        assert!(report.grouping.count >= 2, "{report:?}");
+        assert_eq!(report.mask.merged_segments, 1, "{report:?}");
+        assert_eq!(distinct_labels(&out), 1, "{report:?}");
+        // With the merge off, the two halves stay apart.
+        let off = Config {
+            merge_twist_m: 0.0,
+            ..Config::PAPER
+        };
+        let (out, report) = over_segmented_slide(&off);
+        assert_eq!(report.mask.merged_segments, 0);
+        assert_eq!(distinct_labels(&out), 2);
+    }
+
     #[test]
     fn nothing_moved_changes_nothing() {
         let r = render(&row(&[Pose::identity(); 3]), 320, 240);

@@ -658,7 +658,7 @@ fn merge_same_motion(
     parent: &mut [u32],
     labels: &mut [u16],
 ) -> usize {
-    if !(cfg.merge_twist_m > 0.0) {
+    if cfg.merge_twist_m <= 0.0 || cfg.merge_twist_m.is_nan() {
         return 0;
     }
     let Some(parent) = parent.get_mut(..next as usize) else {

@@ -283,9 +283,9 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-impl std::fmt::Display for BenchReport {
+impl core::fmt::Display for BenchReport {
     /// Table 1: static and RISeg rows side by side per push, then the stage medians.
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         writeln!(
             f,
             "{:>4} {:>6} | {:^26} | {:^26}",

@@ -16,7 +16,8 @@
 //! Files are written atomically; the folder is created if missing and files of an earlier
 //! demo in it are replaced.
 
-use std::{fmt::Write as _, path::Path};
+use core::fmt::Write as _;
+use std::path::Path;
 
 use riseg_core::{Config, Intrinsics};
 

@@ -23,6 +23,7 @@ pub mod generate;
 pub mod imageio;
 pub mod metrics;
 pub mod preview;
+pub mod replay;
 pub mod robot;
 pub mod scene;
 pub mod segment;

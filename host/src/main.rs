@@ -15,11 +15,13 @@ use riseg::flow::{
     viz::flow_to_rgb,
 };
 use riseg::generate::{PREVIEW_DIR, scene_dir_name, write_dataset};
+use riseg::replay::run_scene;
 use riseg::segment::{
     ClassicalSegmenter, RgbdFrame, SegmenterParams,
     files::{self, FileError},
     viz,
 };
+use riseg::tracker::Tracker;
 
 /// RISeg: robot interactive object segmentation via body frame-invariant features.
 ///
@@ -92,6 +94,38 @@ enum Command {
     /// The paper's experiment (Table 1) on simulated scenes: static segmenter vs RISeg.
     #[command(long_about = BENCH_HELP)]
     Bench(BenchArgs),
+    /// Run RISeg on recorded scenes (the pushes already happened) and write its masks.
+    #[command(long_about = RUN_HELP)]
+    Run(RunArgs),
+}
+
+const RUN_HELP: &str = "\
+Run RISeg on recorded scenes (the pushes already happened) and write its masks.
+
+For each scene folder (the format `riseg gen` writes and `riseg gen --help` describes: \
+scene_camera.json, rgb/NNNNNN.png, depth/NNNNNN.png; label/ and actions.json are not \
+needed), frame 0 is segmented by the built-in static segmenter; for every later frame the \
+optical flow from the previous frame, the new static segmentation and riseg-core's \
+UpdateMask carry the mask forward and split what moved differently. The mask of frame t \
+is written to PRED/<scene>/label/<t>.png (16-bit, 0 = background), the layout \
+`riseg eval --pred PRED` reads. Each PNG is written atomically.
+
+Examples:
+  riseg run --scene data/sim23/scene_004 --out out/pred
+  riseg run --dataset data/sim23 --out out/pred && riseg eval --gt data/sim23 --pred out/pred";
+
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("input").required(true).args(["scene", "dataset"])))]
+struct RunArgs {
+    /// One scene folder.
+    #[arg(long, value_name = "DIR")]
+    scene: Option<PathBuf>,
+    /// A dataset: every scene_* folder in it.
+    #[arg(long, value_name = "DIR")]
+    dataset: Option<PathBuf>,
+    /// Output folder: masks go to OUT/<scene name>/label/NNNNNN.png.
+    #[arg(long, value_name = "PRED")]
+    out: PathBuf,
 }
 
 const DEMO_HELP: &str = "\
@@ -385,6 +419,7 @@ fn main() -> ExitCode {
         Command::Segment(args) => segment(&args),
         Command::Flow(args) => run_flow(&args),
         Command::Bench(args) => run_bench(&args),
+        Command::Run(args) => run_recorded(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -432,7 +467,7 @@ fn run_demo(args: &DemoArgs) -> anyhow::Result<()> {
         ProgressStyle::with_template("{spinner} {msg} {elapsed}")
             .context("progress bar template")?,
     );
-    bar.enable_steady_tick(std::time::Duration::from_millis(120));
+    bar.enable_steady_tick(core::time::Duration::from_millis(120));
     bar.set_message("frame 0: rendering, segmenting");
     let report = riseg::demo::run_demo(&args.out, args.seed, |t| {
         bar.set_message(format!(
@@ -452,6 +487,44 @@ fn run_demo(args: &DemoArgs) -> anyhow::Result<()> {
     println!(
         "pictures and report: {}",
         args.out.join("report.md").display()
+    );
+    Ok(())
+}
+
+fn run_recorded(args: &RunArgs) -> anyhow::Result<()> {
+    let scenes = match (&args.scene, &args.dataset) {
+        (Some(scene), _) => vec![scene.clone()],
+        (None, Some(dataset)) => {
+            let scenes = riseg::scene::list_scenes(dataset)?;
+            if scenes.is_empty() {
+                bail!("{}: no scene_* folders", dataset.display());
+            }
+            scenes
+        }
+        (None, None) => bail!("give --scene DIR or --dataset DIR"),
+    };
+    let mut tracker = Tracker::new(
+        ClassicalSegmenter::new(SegmenterParams::default())?,
+        DisFlow::new(FlowParams::MEDIUM)?,
+        riseg_core::Config::PAPER,
+    )?;
+    let bar = ProgressBar::new(scenes.len() as u64).with_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} scenes  {elapsed}  eta {eta}  {msg}")
+            .context("progress bar template")?,
+    );
+    let mut frames = 0;
+    for dir in &scenes {
+        let name = dir.file_name().unwrap_or(dir.as_os_str()).to_string_lossy();
+        frames += run_scene(&mut tracker, dir, &args.out, |t| {
+            bar.set_message(format!("{name}: frame {t}"));
+        })?;
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    println!(
+        "wrote {frames} masks of {} scenes to {}",
+        scenes.len(),
+        args.out.display()
     );
     Ok(())
 }

@@ -5,7 +5,8 @@
 //! hand-eye transform is the camera's true pose, [`SimScene::world_from_camera`]: not the
 //! identity, since the camera is 0.6 m up and tilted.
 
-use std::{cell::RefCell, rc::Rc};
+use core::cell::RefCell;
+use std::rc::Rc;
 
 use riseg_core::Pose;
 

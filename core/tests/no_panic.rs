@@ -15,9 +15,14 @@ use riseg_core::{
     pipeline::{Workspace, WorkspaceLen, update_mask},
 };
 
+#[path = "common/uniform.rs"]
+mod uniform;
+
+use uniform::uniform;
+
 fn depth_value() -> impl Strategy<Value = f32> {
     prop_oneof![
-        4 => 0.3f32..1.2,
+        4 => uniform(0.3, 1.2),
         1 => Just(0.0f32),
         1 => Just(f32::NAN),
         1 => Just(-0.5f32),
@@ -27,10 +32,10 @@ fn depth_value() -> impl Strategy<Value = f32> {
 
 fn flow_value() -> impl Strategy<Value = [f32; 2]> {
     prop_oneof![
-        6 => (-4.0f32..4.0, -4.0f32..4.0).prop_map(|(x, y)| [x, y]),
+        6 => (uniform(-4.0, 4.0), uniform(-4.0, 4.0)).prop_map(|(x, y)| [x, y]),
         1 => Just([f32::NAN, 0.0]),
         1 => Just([1e30, -1e30]),
-        1 => (-400.0f32..400.0, -400.0f32..400.0).prop_map(|(x, y)| [x, y]),
+        1 => (uniform(-400.0, 400.0), uniform(-400.0, 400.0)).prop_map(|(x, y)| [x, y]),
     ]
 }
 

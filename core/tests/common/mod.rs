@@ -4,21 +4,29 @@ use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
 use riseg_core::Pose;
 
+mod uniform;
+pub use uniform::uniform;
+
 /// A point in a 30 cm cube around the camera's working distance.
 pub fn point() -> impl Strategy<Value = Point3<f32>> {
-    (-0.15f32..0.15, -0.15f32..0.15, 0.45f32..0.75).prop_map(|(x, y, z)| Point3::new(x, y, z))
+    (
+        uniform(-0.15, 0.15),
+        uniform(-0.15, 0.15),
+        uniform(0.45, 0.75),
+    )
+        .prop_map(|(x, y, z)| Point3::new(x, y, z))
 }
 
 /// A rigid motion: rotation up to 3 rad about a random axis, translation up to 10 cm.
 pub fn motion() -> impl Strategy<Value = Pose> {
     (
-        -1.0f32..1.0,
-        -1.0f32..1.0,
-        -1.0f32..1.0,
-        0.0f32..3.0,
-        -0.1f32..0.1,
-        -0.1f32..0.1,
-        -0.1f32..0.1,
+        uniform(-1.0, 1.0),
+        uniform(-1.0, 1.0),
+        uniform(-1.0, 1.0),
+        uniform(0.0, 3.0),
+        uniform(-0.1, 0.1),
+        uniform(-0.1, 0.1),
+        uniform(-0.1, 0.1),
     )
         .prop_filter_map("axis too short", |(ax, ay, az, angle, tx, ty, tz)| {
             let axis = Vector3::new(ax, ay, az).try_normalize(1e-3)?;

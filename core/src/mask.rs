@@ -64,7 +64,7 @@ const HOLE: u32 = u32::MAX - 1;
 pub struct FrameGroups<'a> {
     /// The frames.
     pub frames: &'a [BodyFrame],
-    /// Group of each frame, or [`NO_GROUP`].
+    /// Group of each frame, or [`NO_GROUP`](crate::group::NO_GROUP).
     pub frame_group: &'a [u16],
     /// The groups; twists are in the space frame at `space_origin`.
     pub groups: &'a [GroupInfo],

@@ -355,14 +355,18 @@ pub(crate) mod tests {
         }
     }
 
-    /// Runs one step with the whole foreground as one segment at `t` and at `t+1` (the
-    /// static segmenter merged everything); returns the corrected mask.
-    fn step_merged(r: &Rendered, cfg: &Config) -> (Vec<u16>, StepReport) {
+    /// Runs one step from the accumulated mask `labels_t` and the static mask `static_t1`
+    /// over `r`'s depth and flow; returns the corrected mask.
+    fn step_with(
+        r: &Rendered,
+        labels_t: &[u16],
+        static_t1: &[u16],
+        cfg: &Config,
+        on_stage: impl FnMut(Stage),
+    ) -> (Vec<u16>, StepReport) {
         let (w, h) = (r.width, r.height);
-        let merged_t: Vec<u16> = r.labels_t.iter().map(|&l| u16::from(l != 0)).collect();
-        let merged_t1: Vec<u16> = r.labels_t1.iter().map(|&l| u16::from(l != 0)).collect();
         let input = MotionInput::new(
-            ImageView::packed(w, h, &merged_t).unwrap(),
+            ImageView::packed(w, h, labels_t).unwrap(),
             ImageView::packed(w, h, &r.depth_t).unwrap(),
             ImageView::packed(w, h, &r.depth_t1).unwrap(),
             ImageView::packed(w, h, &r.flow).unwrap(),
@@ -371,9 +375,19 @@ pub(crate) mod tests {
         .unwrap();
         let mut ws = OwnedWorkspace::new(cfg, w, h);
         let mut out = vec![0u16; w * h];
-        let static_t1 = ImageView::packed(w, h, &merged_t1).unwrap();
-        let report = update_mask(&input, &static_t1, cfg, &mut ws.view(), &mut out).unwrap();
+        let static_t1 = ImageView::packed(w, h, static_t1).unwrap();
+        let report =
+            update_mask_observed(&input, &static_t1, cfg, &mut ws.view(), &mut out, on_stage)
+                .unwrap();
         (out, report)
+    }
+
+    /// Runs one step with the whole foreground as one segment at `t` and at `t+1` (the
+    /// static segmenter merged everything); returns the corrected mask.
+    fn step_merged(r: &Rendered, cfg: &Config) -> (Vec<u16>, StepReport) {
+        let merged_t: Vec<u16> = r.labels_t.iter().map(|&l| u16::from(l != 0)).collect();
+        let merged_t1: Vec<u16> = r.labels_t1.iter().map(|&l| u16::from(l != 0)).collect();
+        step_with(r, &merged_t, &merged_t1, cfg, |_| {})
     }
 
     /// For each true object, the best IoU any predicted label reaches.
@@ -463,35 +477,18 @@ pub(crate) mod tests {
 
     #[test]
     fn the_observer_sees_each_stage_once_in_order_and_the_result_is_unchanged() {
-        let boxes = row(&[slide_y(0.01), Pose::identity()]);
-        let r = render(&boxes, 160, 120);
-        let (w, h) = (r.width, r.height);
+        let r = render(&row(&[slide_y(0.01), Pose::identity()]), 160, 120);
         let cfg = Config::PAPER;
         let (plain, plain_report) = step_merged(&r, &cfg);
         let merged_t: Vec<u16> = r.labels_t.iter().map(|&l| u16::from(l != 0)).collect();
         let merged_t1: Vec<u16> = r.labels_t1.iter().map(|&l| u16::from(l != 0)).collect();
-        let input = MotionInput::new(
-            ImageView::packed(w, h, &merged_t).unwrap(),
-            ImageView::packed(w, h, &r.depth_t).unwrap(),
-            ImageView::packed(w, h, &r.depth_t1).unwrap(),
-            ImageView::packed(w, h, &r.flow).unwrap(),
-            r.intrinsics,
-        )
-        .unwrap();
-        let mut ws = OwnedWorkspace::new(&cfg, w, h);
-        let mut out = vec![0u16; w * h];
-        let static_t1 = ImageView::packed(w, h, &merged_t1).unwrap();
         let mut seen = Vec::new();
-        let report =
-            update_mask_observed(&input, &static_t1, &cfg, &mut ws.view(), &mut out, |s| {
-                seen.push(s);
-            })
-            .unwrap();
+        let observed = step_with(&r, &merged_t, &merged_t1, &cfg, |s| seen.push(s));
         assert_eq!(
             seen,
             [Stage::Frames, Stage::Twists, Stage::Grouping, Stage::Mask]
         );
-        assert_eq!((out, report), (plain, plain_report));
+        assert_eq!(observed, (plain, plain_report));
     }
 
     #[test]
@@ -568,19 +565,7 @@ pub(crate) mod tests {
             sliver >= 2 * Config::PAPER.min_segment_px as usize,
             "{sliver} px"
         );
-        let input = MotionInput::new(
-            ImageView::packed(w, h, &carried).unwrap(),
-            ImageView::packed(w, h, &r.depth_t).unwrap(),
-            ImageView::packed(w, h, &r.depth_t1).unwrap(),
-            ImageView::packed(w, h, &r.flow).unwrap(),
-            r.intrinsics,
-        )
-        .unwrap();
-        let cfg = Config::PAPER;
-        let mut ws = OwnedWorkspace::new(&cfg, w, h);
-        let mut out = vec![0u16; w * h];
-        let static_t1 = ImageView::packed(w, h, &r.labels_t1).unwrap();
-        update_mask(&input, &static_t1, &cfg, &mut ws.view(), &mut out).unwrap();
+        let (out, _) = step_with(&r, &carried, &r.labels_t1, &Config::PAPER, |_| {});
         assert_eq!(distinct_labels(&out), 2);
         for (id, iou) in best_ious(&r.labels_t1, &out) {
             assert!(iou >= 0.99, "object {id}: IoU {iou:.3}");
@@ -611,19 +596,7 @@ pub(crate) mod tests {
                 .collect()
         };
         let (split_t, split_t1) = (halves(&r.labels_t), halves(&r.labels_t1));
-        let input = MotionInput::new(
-            ImageView::packed(w, h, &split_t).unwrap(),
-            ImageView::packed(w, h, &r.depth_t).unwrap(),
-            ImageView::packed(w, h, &r.depth_t1).unwrap(),
-            ImageView::packed(w, h, &r.flow).unwrap(),
-            r.intrinsics,
-        )
-        .unwrap();
-        let mut ws = OwnedWorkspace::new(cfg, w, h);
-        let mut out = vec![0u16; w * h];
-        let static_t1 = ImageView::packed(w, h, &split_t1).unwrap();
-        let report = update_mask(&input, &static_t1, cfg, &mut ws.view(), &mut out).unwrap();
-        (out, report)
+        step_with(&r, &split_t, &split_t1, cfg, |_| {})
     }
 
     #[test]

@@ -4,7 +4,7 @@
 //!
 //! Scene `i` of seed `S` is the simulator's scene [`scene_seed`]`(S, i)` (the next attempt
 //! seed when no placement fits, as `riseg gen` does). On each scene one episode of
-//! Algorithm 1 runs ([`run_episode`]) with the built-in segmenter and flow: the loop picks
+//! Algorithm 1 runs ([`crate::episode::run_episode`]) with the built-in segmenter and flow: the loop picks
 //! its own pushes, at most [`Config::max_pushes`]. Every captured frame `t` is scored
 //! against the simulator's ground truth twice: the static segmentation of that frame (the
 //! `static` rows) and the accumulated RISeg mask (the `riseg` rows; at `t = 0` both are the
@@ -22,7 +22,7 @@ use riseg_core::Config;
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    episode::{EpisodeError, EpisodeFrame, RobotSetup, Stop, run_episode},
+    episode::{EpisodeError, EpisodeFrame, Stop},
     eval::{EvalReport, PushReport},
     flow::{DisFlow, FlowError, FlowParams},
     generate::{MAX_ATTEMPTS, scene_seed},
@@ -147,10 +147,6 @@ pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchEr
     let (sim, sim_seed) = place_scene(scene_seed(cfg.seed, scene))
         .map_err(|source| BenchError::Sim { scene, source })?;
     let mut rig = SimRig::new(sim);
-    let setup = RobotSetup {
-        robot_from_camera: rig.robot_from_camera,
-        geometry: rig.geometry,
-    };
     let mut tracker = Tracker::new(
         ClassicalSegmenter::new(cfg.segmenter)?,
         DisFlow::new(cfg.flow)?.with_threads(1)?,
@@ -159,20 +155,15 @@ pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchEr
     let mut static_metrics = Vec::new();
     let mut riseg_metrics = Vec::new();
     let mut times = Vec::new();
-    let summary = run_episode(
-        &mut rig.camera,
-        &mut rig.robot,
-        &mut tracker,
-        &setup,
-        |f: &EpisodeFrame<'_>| {
+    let summary = rig
+        .run(&mut tracker, |f: &EpisodeFrame<'_>| {
             let (s, r) = score_frame(f).map_err(|e| format!("scoring frame {}: {e}", f.t))?;
             static_metrics.push(s);
             riseg_metrics.push(r);
             times.push(f.observation.times);
             Ok(())
-        },
-    )
-    .map_err(|source| BenchError::Episode { scene, source })?;
+        })
+        .map_err(|source| BenchError::Episode { scene, source })?;
     Ok(SceneResult {
         scene,
         sim_seed,

@@ -3,7 +3,7 @@
 //! # Contract
 //!
 //! [`run_demo`] builds the simulated scene of `seed`, runs one episode of Algorithm 1 with
-//! the built-in segmenter and flow ([`run_episode`]), scores each frame against the
+//! the built-in segmenter and flow ([`crate::episode::run_episode`]), scores each frame against the
 //! simulator's ground truth, and writes into the output folder:
 //! - `frame_N.png` for each frame `N` (the scene after `N` pushes), four panels:
 //!   top left the static segmentation, top right the RISeg mask with FindAction's certain
@@ -24,7 +24,7 @@ use riseg_core::{Config, Intrinsics};
 use crate::{
     bench::score_frame,
     draw::{Clip, arrow, dot, label_colour, line, overlay_labels},
-    episode::{Decision, EpisodeFrame, RobotSetup, Stop, run_episode},
+    episode::{Decision, EpisodeFrame, Stop},
     eval::PushReport,
     flow::{DisFlow, FlowParams, viz::flow_to_rgb},
     imageio::{RgbImage, write_atomic, write_rgb8},
@@ -77,28 +77,18 @@ pub fn run_demo(
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let sim = SimScene::new(seed).with_context(|| format!("building simulated scene {seed}"))?;
     let mut rig = SimRig::new(sim);
-    let setup = RobotSetup {
-        robot_from_camera: rig.robot_from_camera,
-        geometry: rig.geometry,
-    };
     let mut tracker = Tracker::new(
         ClassicalSegmenter::new(SegmenterParams::default())?,
         DisFlow::new(FlowParams::MEDIUM)?,
         Config::PAPER,
     )?;
     let mut frames = Vec::new();
-    let summary = run_episode(
-        &mut rig.camera,
-        &mut rig.robot,
-        &mut tracker,
-        &setup,
-        |f: &EpisodeFrame<'_>| {
-            let done = demo_frame(out, f).map_err(|e| format!("{e:#}"))?;
-            frames.push(done);
-            on_frame(f.t);
-            Ok(())
-        },
-    )?;
+    let summary = rig.run(&mut tracker, |f: &EpisodeFrame<'_>| {
+        let done = demo_frame(out, f).map_err(|e| format!("{e:#}"))?;
+        frames.push(done);
+        on_frame(f.t);
+        Ok(())
+    })?;
     let report = DemoReport {
         seed,
         frames,

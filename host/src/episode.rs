@@ -21,7 +21,7 @@ use riseg_core::{
 use crate::{
     camera::{Camera, CameraError, CameraFrame},
     flow::FlowEstimator,
-    robot::{PushCommand, PushGeometry, PushRefused, Robot, RobotError, plan_push},
+    robot::{PushCommand, PushRefused, Robot, RobotError, RobotSetup, plan_push},
     segment::StaticSegmenter,
     tracker::{Observation, TrackError, Tracker},
     workspace::ActionBuf,
@@ -99,15 +99,6 @@ pub struct EpisodeSummary {
     pub pushes: Vec<PushCommand>,
     /// Why it stopped.
     pub stop: Stop,
-}
-
-/// The calibration the loop needs to turn pixels into robot motions.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RobotSetup {
-    /// Hand-eye calibration: the camera's pose in the robot frame.
-    pub robot_from_camera: riseg_core::Pose,
-    /// How the tool meets the objects.
-    pub geometry: PushGeometry,
 }
 
 /// Runs Algorithm 1 (module docs). `on_frame` may return an error to abort.

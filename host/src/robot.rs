@@ -166,6 +166,15 @@ pub fn plan_push(
     Ok(cmd)
 }
 
+/// The calibration the loop needs to turn pixels into robot motions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RobotSetup {
+    /// Hand-eye calibration: the camera's pose in the robot frame.
+    pub robot_from_camera: Pose,
+    /// How the tool meets the objects.
+    pub geometry: PushGeometry,
+}
+
 /// Why the robot could not execute a push.
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
@@ -212,32 +221,30 @@ mod tests {
         min_height_m: 0.007,
     };
 
-    fn push_towards(direction_cam: Vector3<f32>, length_m: f32) -> Push {
-        Push {
+    /// Plans a push of `length_m` whose object edge and direction are given in the robot
+    /// frame (the test converts them to the camera frame, as FindAction reports them).
+    fn plan(
+        edge_robot: Point3<f32>,
+        dir_robot: Vector3<f32>,
+        length_m: f32,
+    ) -> Result<PushCommand, PushRefused> {
+        let t = robot_from_camera();
+        let push = Push {
             start_px: [0.0, 0.0],
             target_px: [0.0, 0.0],
             start_cam_m: Point3::origin(),
-            direction_cam,
+            direction_cam: t.inverse().rotation * dir_robot,
             length_m,
-        }
+        };
+        plan_push(&push, &(t.inverse() * edge_robot), &t, &GEOMETRY, &limits())
     }
 
     #[test]
     fn the_edge_maps_through_the_hand_eye_transform_and_the_push_is_level_at_half_height() {
-        let t = robot_from_camera();
-        // An object edge 4 cm over the table at (0.55, 0.02) in the robot frame.
+        // An object edge 4 cm over the table at (0.55, 0.02); the direction along robot +y
+        // but tilted down, as seen from the camera.
         let edge_robot = Point3::new(0.55, 0.02, 0.04);
-        let edge_cam = t.inverse() * edge_robot;
-        // Pointing along robot +y, but tilted down in the camera's view.
-        let dir_cam = t.inverse().rotation * Vector3::new(0.0, 1.0, -0.3).normalize();
-        let cmd = plan_push(
-            &push_towards(dir_cam, 0.02),
-            &edge_cam,
-            &t,
-            &GEOMETRY,
-            &limits(),
-        )
-        .unwrap();
+        let cmd = plan(edge_robot, Vector3::new(0.0, 1.0, -0.3).normalize(), 0.02).unwrap();
         assert!(
             (cmd.direction_robot - Vector3::y()).norm() < 1e-5,
             "{cmd:?}"
@@ -250,70 +257,37 @@ mod tests {
         assert!((cmd.length_m - 0.03).abs() < 1e-6);
         assert!((cmd.end_robot_m() - Point3::new(0.55, 0.04, 0.02)).norm() < 1e-5);
         // Not the identity: the camera-frame edge is far from its robot-frame coordinates.
+        let edge_cam = robot_from_camera().inverse() * edge_robot;
         assert!((edge_cam.coords - edge_robot.coords).norm() > 0.1);
     }
 
     #[test]
     fn a_low_object_is_pushed_at_the_minimum_height() {
-        let t = robot_from_camera();
-        let edge_cam = t.inverse() * Point3::new(0.5, 0.0, 0.008);
-        let dir_cam = t.inverse().rotation * Vector3::x();
-        let cmd = plan_push(
-            &push_towards(dir_cam, 0.02),
-            &edge_cam,
-            &t,
-            &GEOMETRY,
-            &limits(),
-        )
-        .unwrap();
+        let cmd = plan(Point3::new(0.5, 0.0, 0.008), Vector3::x(), 0.02).unwrap();
         assert!((cmd.start_robot_m.z - 0.007).abs() < 1e-5, "{cmd:?}");
     }
 
     #[test]
     fn pushes_outside_limits_are_refused_with_a_clear_message() {
-        let t = robot_from_camera();
-        let along_x = t.inverse().rotation * Vector3::x();
-        let far = t.inverse() * Point3::new(0.5, 0.9, 0.04);
-        let err =
-            plan_push(&push_towards(along_x, 0.02), &far, &t, &GEOMETRY, &limits()).unwrap_err();
+        let err = plan(Point3::new(0.5, 0.9, 0.04), Vector3::x(), 0.02).unwrap_err();
         assert!(matches!(
             err,
             PushRefused::OutsideWorkspace { which: "start", .. }
         ));
         assert!(err.to_string().contains("outside the workspace"), "{err}");
-        let near = t.inverse() * Point3::new(0.5, 0.0, 0.04);
-        let too_long = plan_push(&push_towards(along_x, 0.2), &near, &t, &GEOMETRY, &limits());
+        let too_long = plan(Point3::new(0.5, 0.0, 0.04), Vector3::x(), 0.2);
         assert!(
             matches!(too_long, Err(PushRefused::TooLong { length_m, limit_m: 0.05 })
                 if (length_m - 0.21).abs() < 1e-6),
             "{too_long:?}"
         );
-        let nan = Point3::new(f32::NAN, 0.0, 0.58);
-        assert_eq!(
-            plan_push(&push_towards(along_x, 0.02), &nan, &t, &GEOMETRY, &limits()),
-            Err(PushRefused::NotFinite)
-        );
-        let vertical = t.inverse().rotation * Vector3::z();
-        assert_eq!(
-            plan_push(
-                &push_towards(vertical, 0.02),
-                &near,
-                &t,
-                &GEOMETRY,
-                &limits()
-            ),
-            Err(PushRefused::NotFinite)
-        );
+        let nan = plan(Point3::new(f32::NAN, 0.0, 0.04), Vector3::x(), 0.02);
+        assert_eq!(nan, Err(PushRefused::NotFinite));
+        let vertical = plan(Point3::new(0.5, 0.0, 0.04), Vector3::z(), 0.02);
+        assert_eq!(vertical, Err(PushRefused::NotFinite));
         // Ends outside: starts near the +x edge of the box, pushing further out.
-        let edge = t.inverse() * Point3::new(0.79, 0.0, 0.04);
         assert!(matches!(
-            plan_push(
-                &push_towards(along_x, 0.02),
-                &edge,
-                &t,
-                &GEOMETRY,
-                &limits()
-            ),
+            plan(Point3::new(0.79, 0.0, 0.04), Vector3::x(), 0.02),
             Err(PushRefused::OutsideWorkspace { which: "end", .. })
         ));
     }

@@ -5,7 +5,7 @@
 use riseg::{
     bench::{BenchConfig, run_bench, run_scene as bench_scene},
     camera::Camera as _,
-    episode::{RobotSetup, Stop, run_episode},
+    episode::{Stop, run_episode},
     eval,
     flow::{DisFlow, FlowParams},
     generate::generate_scene,
@@ -80,20 +80,22 @@ fn run_on_a_recorded_scene_equals_the_in_memory_replay_of_its_frames() {
 fn a_push_longer_than_the_robot_allows_is_refused_and_nothing_moves() {
     let sim = SimScene::new(3).expect("scene");
     let mut rig = SimRig::new(sim);
-    let setup = RobotSetup {
-        robot_from_camera: rig.robot_from_camera,
-        geometry: rig.geometry,
-    };
     let limits = PushLimits {
         max_push_len_m: 0.01,
         ..rig.robot.limits()
     };
     let mut robot = rig.robot.with_limits(limits);
     let mut decisions = Vec::new();
-    let summary = run_episode(&mut rig.camera, &mut robot, &mut tracker(), &setup, |f| {
-        decisions.push(f.decision);
-        Ok(())
-    })
+    let summary = run_episode(
+        &mut rig.camera,
+        &mut robot,
+        &mut tracker(),
+        &rig.setup,
+        |f| {
+            decisions.push(f.decision);
+            Ok(())
+        },
+    )
     .expect("episode");
     assert_eq!(summary.frames, 1);
     assert!(summary.pushes.is_empty() && robot.pushes().is_empty());

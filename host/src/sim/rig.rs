@@ -8,12 +8,14 @@
 use core::cell::RefCell;
 use std::rc::Rc;
 
-use riseg_core::Pose;
-
 use super::{MAX_PUSH_LEN_M, SimScene, TABLE_HALF_EXTENTS_M};
 use crate::{
     camera::{Camera, CameraError, CameraFrame},
-    robot::{PushCommand, PushGeometry, PushLimits, Robot, RobotError},
+    episode::{EpisodeError, EpisodeFrame, EpisodeSummary, run_episode},
+    flow::FlowEstimator,
+    robot::{PushCommand, PushGeometry, PushLimits, Robot, RobotError, RobotSetup},
+    segment::StaticSegmenter,
+    tracker::Tracker,
 };
 
 /// Longest push the simulated arm accepts, metres (approach included).
@@ -87,13 +89,30 @@ pub struct SimRig {
     pub camera: SimCamera,
     /// The arm.
     pub robot: SimRobot,
-    /// Hand-eye calibration: the camera's pose in the robot (world) frame.
-    pub robot_from_camera: Pose,
-    /// How the tool meets the objects.
-    pub geometry: PushGeometry,
+    /// Hand-eye calibration (the camera's true pose in the world frame) and how the tool
+    /// meets the objects.
+    pub setup: RobotSetup,
 }
 
 impl SimRig {
+    /// Runs one episode of Algorithm 1 on these devices ([`run_episode`]).
+    ///
+    /// # Errors
+    /// As [`run_episode`].
+    pub fn run<S: StaticSegmenter, F: FlowEstimator>(
+        &mut self,
+        tracker: &mut Tracker<S, F>,
+        on_frame: impl FnMut(&EpisodeFrame<'_>) -> Result<(), String>,
+    ) -> Result<EpisodeSummary, EpisodeError> {
+        run_episode(
+            &mut self.camera,
+            &mut self.robot,
+            tracker,
+            &self.setup,
+            on_frame,
+        )
+    }
+
     /// Devices over `scene`. The workspace box is the table top (x, y) from the tool's
     /// radius up to [`SIM_MAX_TOOL_HEIGHT_M`]; pushes up to [`SIM_MAX_PUSH_LEN_M`].
     #[must_use]
@@ -121,8 +140,10 @@ impl SimRig {
                 limits,
                 pushes: Vec::new(),
             },
-            robot_from_camera,
-            geometry,
+            setup: RobotSetup {
+                robot_from_camera,
+                geometry,
+            },
         }
     }
 }

@@ -302,8 +302,10 @@ impl core::fmt::Display for BenchReport {
             )?;
         }
         write!(f, "median ms per step:")?;
-        for (name, ms) in &self.timing_ms {
-            write!(f, " {name} {ms:.1}")?;
+        for name in StageTimes::NAMES {
+            if let Some(ms) = self.timing_ms.get(name) {
+                write!(f, " {name} {ms:.1}")?;
+            }
         }
         writeln!(f)
     }

@@ -1,0 +1,91 @@
+//! The loop's commands as a user runs them: `riseg demo`, `riseg bench --json`, `riseg run`.
+
+use std::process::Command;
+
+fn riseg() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_riseg"))
+}
+
+#[test]
+fn the_default_command_is_the_demo_and_it_writes_pictures_and_a_report() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = riseg().current_dir(dir.path()).output().expect("run riseg");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("| push |"), "{stdout}");
+    let demo = dir.path().join("riseg-demo");
+    let report = std::fs::read_to_string(demo.join("report.md")).expect("report.md");
+    let pictures: Vec<_> = report
+        .lines()
+        .filter_map(|l| {
+            l.strip_prefix("![frame ")?
+                .split_once("](")?
+                .1
+                .strip_suffix(')')
+        })
+        .collect();
+    assert!(!pictures.is_empty(), "{report}");
+    for p in pictures {
+        let img = image::open(demo.join(p)).expect("picture").to_rgb8();
+        assert_eq!(img.dimensions(), (1280, 960), "{p}");
+    }
+}
+
+#[test]
+fn bench_json_has_the_table_one_shape() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let json = dir.path().join("bench.json");
+    let out = riseg()
+        .args(["bench", "--scenes", "1", "--seed", "4", "--json"])
+        .arg(&json)
+        .output()
+        .expect("run riseg");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("valid json");
+    for key in ["static", "riseg"] {
+        let rows = v[key].as_array().expect("rows");
+        assert!(!rows.is_empty(), "{v}");
+        assert_eq!(rows[0]["push"], 0);
+        assert!(rows[0]["overlap"]["f"].is_number() && rows[0]["objects_f75_pct"].is_number());
+    }
+    let timing = v["timing_ms"].as_object().expect("timing");
+    for stage in ["segment", "flow", "frames", "twists", "grouping", "mask"] {
+        assert!(
+            timing[stage].as_f64().is_some_and(|ms| ms >= 0.0),
+            "{stage}: {v}"
+        );
+    }
+}
+
+#[test]
+fn run_names_a_missing_scene_folder_and_writes_nothing() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let missing = dir.path().join("no_such_scene");
+    let pred = dir.path().join("pred");
+    let out = riseg()
+        .args(["run", "--scene"])
+        .arg(&missing)
+        .arg("--out")
+        .arg(&pred)
+        .output()
+        .expect("run riseg");
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("no_such_scene"), "{stderr}");
+    assert!(!pred.exists());
+    let neither = riseg()
+        .args(["run", "--out"])
+        .arg(&pred)
+        .output()
+        .expect("run");
+    assert!(!neither.status.success());
+}

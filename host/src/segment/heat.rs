@@ -306,3 +306,67 @@ fn necks(inp: &HeatInput<'_>, params: &SegmenterParams, notch: &mut Vec<u32>, ma
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two discs of radius 20 px whose centres are 38 px apart, both in segment 1, flat
+    /// at 0.6 m with no crease, step or hole: only the neck can make the waist uncertain.
+    #[test]
+    fn the_waist_of_two_merged_discs_is_uncertain() {
+        let (w, h) = (120, 60);
+        let inside = |x: usize, y: usize, cx: f32| {
+            let (dx, dy) = (x as f32 - cx, y as f32 - 30.0);
+            dx * dx + dy * dy <= 400.0
+        };
+        let labels: Vec<u16> = (0..w * h)
+            .map(|i| u16::from(inside(i % w, i / w, 41.0) || inside(i % w, i / w, 79.0)))
+            .collect();
+        let pts: Vec<P3> = (0..w * h).map(|_| [0.0, 0.0, 0.6]).collect();
+        let zeros = vec![0u8; w * h];
+        let inp = HeatInput {
+            w,
+            h,
+            pts: &pts,
+            crease: &zeros,
+            hole: &zeros,
+            step: &zeros,
+            labels: &labels,
+            segments: 1,
+            inv_focal: 1.0 / 600.0,
+        };
+        let mut heat = vec![0u8; w * h];
+        heatmap(
+            &inp,
+            &SegmenterParams::default(),
+            &mut HeatScratch::default(),
+            &mut heat,
+        );
+        let at = |x: usize, y: usize| heat[y * w + x];
+        assert!(
+            (HEAT_UNCERTAIN..HEAT_CERTAIN).contains(&at(60, 30)),
+            "{}",
+            at(60, 30)
+        );
+        assert!(at(41, 30) >= HEAT_CERTAIN && at(79, 30) >= HEAT_CERTAIN);
+        // One disc alone has no neck: its centre stays certain and nothing is uncertain.
+        let one: Vec<u16> = (0..w * h)
+            .map(|i| u16::from(inside(i % w, i / w, 41.0)))
+            .collect();
+        let mut heat = vec![0u8; w * h];
+        heatmap(
+            &HeatInput {
+                labels: &one,
+                ..inp
+            },
+            &SegmenterParams::default(),
+            &mut HeatScratch::default(),
+            &mut heat,
+        );
+        assert!(
+            heat.iter()
+                .all(|v| !(HEAT_UNCERTAIN..HEAT_CERTAIN).contains(v))
+        );
+    }
+}

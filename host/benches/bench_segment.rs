@@ -7,9 +7,12 @@ use core::hint::black_box;
 use std::path::PathBuf;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use riseg::segment::{
-    ClassicalSegmenter, RgbdFrame, SegmenterParams, StaticSegmenter, files,
-    synthetic::SyntheticTabletop,
+use riseg::{
+    imageio,
+    segment::{
+        ClassicalSegmenter, RgbdFrame, SegmenterParams, StaticSegmenter,
+        synthetic::SyntheticTabletop,
+    },
 };
 use riseg_core::Intrinsics;
 
@@ -29,12 +32,16 @@ fn segment(c: &mut Criterion) {
     );
     let demo = root.join("ucn-demo/data/demo");
     match (
-        files::read_rgb8(&demo.join("000000-color.png")),
-        files::read_gray16(&demo.join("000000-depth.png")),
+        imageio::read_rgb8(&demo.join("000000-color.png")),
+        imageio::read_gray16(&demo.join("000000-depth.png")),
     ) {
         (Ok(rgb), Ok(depth)) => {
-            let depth_m: Vec<f32> = depth.pixels.iter().map(|&d| f32::from(d) * 1e-3).collect();
-            let frame = RgbdFrame::new(640, 480, &rgb.pixels, &depth_m).expect("frame");
+            let depth_m: Vec<f32> = depth
+                .as_slice()
+                .iter()
+                .map(|&d| f32::from(d) * 1e-3)
+                .collect();
+            let frame = RgbdFrame::new(640, 480, rgb.as_slice(), &depth_m).expect("frame");
             let k = Intrinsics::new(612.937, 613.173, 322.549, 248.158).expect("intrinsics");
             g.bench_function("realsense_ucn_000000", |b| {
                 b.iter(|| seg.segment(black_box(&frame), &k))

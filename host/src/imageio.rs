@@ -45,6 +45,8 @@ pub type Gray16Image = Image<u16>;
 pub type FlowImage = Image<[f32; 2]>;
 /// Depth in metres, `0.0` where there is no reading.
 pub type DepthImage = Image<f32>;
+/// 8-bit grey pixels: a heatmap, a mask.
+pub type Gray8Image = Image<u8>;
 
 /// `data.len()` does not match `width·height` in [`Image::from_vec`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
@@ -428,6 +430,21 @@ pub fn write_gray16(path: &Path, image: &Gray16Image) -> Result<(), ImageIoError
     write_atomic(path, &png)
 }
 
+/// Writes an 8-bit greyscale PNG atomically.
+///
+/// # Errors
+/// As [`write_rgb8`].
+pub fn write_gray8(path: &Path, image: &Gray8Image) -> Result<(), ImageIoError> {
+    let png = encode_png(
+        path,
+        &image.data,
+        image.width,
+        image.height,
+        ExtendedColorType::L8,
+    )?;
+    write_atomic(path, &png)
+}
+
 /// The `.flo` magic number (the bytes `PIEH` read as a little-endian `f32`).
 pub const FLO_MAGIC: f32 = 202_021.25;
 /// Largest width or height accepted from a `.flo` header (bounds memory on corrupt files).
@@ -537,11 +554,17 @@ mod tests {
         write_rgb8(&dir.join("c.png"), &rgb).unwrap();
         write_gray16(&dir.join("d.png"), &gray).unwrap();
         write_flo(&dir.join("f.flo"), &flow).unwrap();
+        let heat = Gray8Image::from_fn(7, 5, |x, y| (x * 30 + y) as u8);
+        write_gray8(&dir.join("h.png"), &heat).unwrap();
+        assert_eq!(
+            read_gray_widened(&dir.join("h.png")).unwrap(),
+            heat.map(|&v| u16::from(v))
+        );
         assert_eq!(read_rgb8(&dir.join("c.png")).unwrap(), rgb);
         assert_eq!(read_gray16(&dir.join("d.png")).unwrap(), gray);
         assert_eq!(read_gray_widened(&dir.join("d.png")).unwrap(), gray);
         assert_eq!(read_flo(&dir.join("f.flo")).unwrap(), flow);
-        assert_eq!(files_in(&dir), ["c.png", "d.png", "f.flo"]);
+        assert_eq!(files_in(&dir), ["c.png", "d.png", "f.flo", "h.png"]);
         // Overwriting replaces the file whole.
         write_gray16(&dir.join("d.png"), &Gray16Image::from_fn(2, 2, |_, _| 7)).unwrap();
         assert_eq!(read_gray16(&dir.join("d.png")).unwrap().as_slice(), [7; 4]);

@@ -15,12 +15,10 @@ use riseg::flow::{
     viz::flow_to_rgb,
 };
 use riseg::generate::{PREVIEW_DIR, scene_dir_name, write_dataset};
+use riseg::imageio::{self, Image, ImageIoError};
 use riseg::replay::run_scene;
-use riseg::segment::{
-    ClassicalSegmenter, RgbdFrame, SegmenterParams,
-    files::{self, FileError},
-    viz,
-};
+use riseg::scene::{self, SceneCamera};
+use riseg::segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams, viz};
 use riseg::tracker::Tracker;
 
 /// RISeg: robot interactive object segmentation via body frame-invariant features.
@@ -80,7 +78,12 @@ enum Command {
     /// decreasing area) and, if asked, the 8-bit heatmap FindAction uses: >= 150 surely
     /// inside one object, 120-149 where objects touch or depth is unsure, < 120 the table.
     ///
-    /// Example:
+    /// The frame is either frame T of a scene folder (--scene DIR --frame T reads
+    /// DIR/scene_camera.json, DIR/rgb/00000T.png and DIR/depth/00000T.png), or three files
+    /// (--rgb, --depth and --camera); exactly one of the two forms.
+    ///
+    /// Examples:
+    ///   riseg segment --scene data/sim23/scene_000 --frame 0 -o labels.png
     ///   riseg segment --rgb rgb/000000.png --depth depth/000000.png \
     ///     --camera scene_camera.json -o labels.png --heatmap heat.png --viz check.png
     ///
@@ -325,18 +328,31 @@ fn run_flow(args: &FlowArgs) -> anyhow::Result<()> {
 }
 
 #[derive(Debug, Args)]
+#[command(group(
+    clap::ArgGroup::new("input")
+        .required(true)
+        .args(["scene", "rgb"])
+))]
 struct SegmentArgs {
+    /// Scene folder to read the frame from (with --frame): scene_camera.json,
+    /// rgb/NNNNNN.png, depth/NNNNNN.png.
+    #[arg(long, value_name = "DIR", requires = "frame")]
+    scene: Option<PathBuf>,
+    /// Frame number in the scene folder: 0 is the initial frame, t the frame after t
+    /// pushes.
+    #[arg(long, value_name = "T", requires = "scene")]
+    frame: Option<usize>,
     /// Colour image: 8-bit RGB PNG (an alpha channel is ignored).
-    #[arg(long, value_name = "PNG")]
-    rgb: PathBuf,
+    #[arg(long, value_name = "PNG", requires_all = ["depth", "camera"])]
+    rgb: Option<PathBuf>,
     /// Depth image aligned to the colour image: 16-bit greyscale PNG in the camera file's
     /// `depth_unit_m` units (usually millimetres), 0 = no reading.
-    #[arg(long, value_name = "PNG")]
-    depth: PathBuf,
+    #[arg(long, value_name = "PNG", requires_all = ["rgb", "camera"])]
+    depth: Option<PathBuf>,
     /// Camera file (scene_camera.json): width, height, fx, fy, cx, cy (pixels) and
     /// depth_unit_m (metres per depth unit).
-    #[arg(long, value_name = "JSON")]
-    camera: PathBuf,
+    #[arg(long, value_name = "JSON", requires_all = ["rgb", "depth"])]
+    camera: Option<PathBuf>,
     /// Where to write the labels: 16-bit greyscale PNG, 0 = background.
     #[arg(short = 'o', long = "output", value_name = "PNG")]
     output: PathBuf,
@@ -619,48 +635,62 @@ fn run_eval(args: &EvalArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn check_size(path: &Path, expected: (u32, u32), found: (u32, u32)) -> Result<(), FileError> {
-    if expected == found {
-        Ok(())
-    } else {
-        Err(FileError::wrong_size(path, expected, found))
+/// The camera, colour and depth files of `riseg segment`, from either input form.
+fn segment_inputs(args: &SegmentArgs) -> anyhow::Result<(PathBuf, PathBuf, PathBuf)> {
+    match (
+        &args.scene,
+        args.frame,
+        &args.rgb,
+        &args.depth,
+        &args.camera,
+    ) {
+        (Some(dir), Some(t), None, None, None) => {
+            let (rgb, depth) = scene::frame_paths(dir, t);
+            Ok((dir.join(scene::CAMERA_FILE), rgb, depth))
+        }
+        (None, None, Some(rgb), Some(depth), Some(camera)) => {
+            Ok((camera.clone(), rgb.clone(), depth.clone()))
+        }
+        // clap's argument group and `requires` rule the other combinations out.
+        _ => bail!("give either --scene DIR --frame T, or --rgb, --depth and --camera"),
     }
 }
 
 fn segment(args: &SegmentArgs) -> anyhow::Result<()> {
-    let camera = files::read_scene_camera(&args.camera)?;
-    let rgb = files::read_rgb8(&args.rgb)?;
-    let depth = files::read_gray16(&args.depth)?;
-    let size = (camera.width, camera.height);
-    check_size(&args.rgb, size, rgb.size())?;
-    check_size(&args.depth, size, depth.size())?;
+    let (camera_path, rgb_path, depth_path) = segment_inputs(args)?;
+    let camera = SceneCamera::read(&camera_path)?;
+    let (width, height) = (camera.width, camera.height);
+    let rgb = imageio::read_rgb8(&rgb_path)?;
+    ImageIoError::expect_size(&rgb_path, &rgb, width, height)?;
+    let depth = imageio::read_gray16(&depth_path)?;
+    ImageIoError::expect_size(&depth_path, &depth, width, height)?;
 
     let depth_m: Vec<f32> = depth
-        .pixels
+        .as_slice()
         .iter()
-        .map(|&d| f32::from(d) * camera.depth_unit_m)
+        .map(|&d| camera.depth_m(d))
         .collect();
-    let (w, h) = (camera.width as usize, camera.height as usize);
-    let frame = RgbdFrame::new(w, h, &rgb.pixels, &depth_m)?;
-    let intrinsics = camera
-        .intrinsics()
-        .with_context(|| format!("{}: invalid intrinsics", args.camera.display()))?;
+    let (w, h) = (width as usize, height as usize);
+    let frame = RgbdFrame::new(w, h, rgb.as_slice(), &depth_m)?;
     let mut segmenter = ClassicalSegmenter::new(SegmenterParams {
         seed: args.seed,
         ..SegmenterParams::default()
     })?;
     let out = segmenter
-        .segment_detailed(&frame, &intrinsics)
-        .with_context(|| format!("segmenting {}", args.rgb.display()))?;
+        .segment_detailed(&frame, &camera.intrinsics())
+        .with_context(|| format!("segmenting {}", rgb_path.display()))?;
     let seg = &out.segmentation;
 
-    files::write_gray16(&args.output, camera.width, camera.height, &seg.labels)?;
+    imageio::write_gray16(
+        &args.output,
+        &Image::from_vec(width, height, seg.labels.clone())?,
+    )?;
     if let Some(path) = &args.heatmap {
-        files::write_gray8(path, camera.width, camera.height, &seg.heatmap)?;
+        imageio::write_gray8(path, &Image::from_vec(width, height, seg.heatmap.clone())?)?;
     }
     if let Some(path) = &args.viz {
-        let picture = viz::side_by_side(&rgb.pixels, seg);
-        files::write_rgb8(path, 3 * camera.width, camera.height, &picture)?;
+        let picture = viz::side_by_side(rgb.as_slice(), seg);
+        imageio::write_rgb8(path, &Image::from_vec(3 * width, height, picture)?)?;
     }
     let n = out.plane.normal;
     println!(

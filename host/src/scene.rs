@@ -96,6 +96,21 @@ impl SceneCamera {
         f32::from(raw) * self.depth_unit_m
     }
 
+    /// Reads and checks a camera file (`scene_camera.json`), on its own: for tools that
+    /// need one frame, not the whole scene.
+    ///
+    /// # Errors
+    /// [`SceneError::Missing`], [`SceneError::Io`] or [`SceneError::Json`] naming `path`;
+    /// [`SceneError::Invalid`] for an empty size, non-finite values, a non-positive focal
+    /// length or depth unit.
+    pub fn read(path: &Path) -> Result<Self, SceneError> {
+        let camera: Self = read_json(path)?;
+        match camera.problem() {
+            Some(reason) => Err(invalid(path, reason)),
+            None => Ok(camera),
+        }
+    }
+
     fn problem(&self) -> Option<String> {
         if self.width == 0 || self.height == 0 {
             return Some(format!(
@@ -235,6 +250,17 @@ pub fn frame_file_name(t: usize, ext: &str) -> String {
     format!("{t:06}.{ext}")
 }
 
+/// The colour and depth files of frame `t` in the scene folder `dir`:
+/// `dir/rgb/NNNNNN.png` and `dir/depth/NNNNNN.png`.
+#[must_use]
+pub fn frame_paths(dir: &Path, t: usize) -> (PathBuf, PathBuf) {
+    let name = frame_file_name(t, "png");
+    (
+        dir.join(RGB_DIR).join(&name),
+        dir.join(DEPTH_DIR).join(name),
+    )
+}
+
 /// Frame numbers of the `NNNNNN.ext` files in `dir`, sorted; `None` if `dir` does not exist.
 fn frame_numbers(dir: &Path, ext: &str) -> Result<Option<Vec<usize>>, SceneError> {
     let entries = match fs::read_dir(dir) {
@@ -362,11 +388,7 @@ impl Scene {
                 path: dir.to_path_buf(),
             });
         }
-        let camera_path = dir.join(CAMERA_FILE);
-        let camera: SceneCamera = read_json(&camera_path)?;
-        if let Some(reason) = camera.problem() {
-            return Err(invalid(&camera_path, reason));
-        }
+        let camera = SceneCamera::read(&dir.join(CAMERA_FILE))?;
 
         let rgb_dir = dir.join(RGB_DIR);
         let rgb_numbers = frame_numbers(&rgb_dir, "png")?.ok_or_else(|| SceneError::Missing {

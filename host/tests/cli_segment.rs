@@ -1,5 +1,6 @@
-//! `riseg segment` end to end: outputs on a synthetic frame, and errors that name the bad
-//! file without leaving outputs behind.
+//! `riseg segment` end to end: outputs on a synthetic frame (given as three files, or as a
+//! frame of a scene folder), and errors that name the bad file without leaving outputs
+//! behind.
 
 use std::{
     fs,
@@ -7,7 +8,11 @@ use std::{
     process::{Command, Output},
 };
 
-use riseg::segment::{files, synthetic::SyntheticTabletop};
+use riseg::{
+    imageio::{self, Gray8Image, Gray16Image, Image, RgbImage},
+    scene::{self, SceneCamera},
+    segment::synthetic::SyntheticTabletop,
+};
 
 struct Scene {
     dir: PathBuf,
@@ -22,13 +27,15 @@ impl Scene {
         fs::create_dir_all(&dir).expect("test setup");
         let t = SyntheticTabletop::boxes(320, 240, 3).expect("test setup");
         let k = t.intrinsics;
-        files::write_rgb8(&dir.join("rgb.png"), 320, 240, &t.rgb).expect("test setup");
+        let rgb = Image::from_vec(320, 240, t.rgb.clone()).expect("test setup");
+        imageio::write_rgb8(&dir.join("rgb.png"), &rgb).expect("test setup");
         let mm: Vec<u16> = t
             .depth_m
             .iter()
             .map(|z| (z * 1000.0).round() as u16)
             .collect();
-        files::write_gray16(&dir.join("depth.png"), 320, 240, &mm).expect("test setup");
+        let depth = Image::from_vec(320, 240, mm).expect("test setup");
+        imageio::write_gray16(&dir.join("depth.png"), &depth).expect("test setup");
         fs::write(
             dir.join("scene_camera.json"),
             format!(
@@ -107,16 +114,16 @@ fn segment_writes_labels_heatmap_and_picture() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("segments"));
-    let labels = files::read_gray16(&scene.path("labels.png")).unwrap();
-    assert_eq!(labels.size(), (320, 240));
-    let segments = labels.pixels.iter().copied().max().unwrap();
+    let labels = imageio::read_gray16(&scene.path("labels.png")).unwrap();
+    assert_eq!((labels.width(), labels.height()), (320, 240));
+    let segments = labels.as_slice().iter().copied().max().unwrap();
     assert!(segments >= 3, "{segments} segments");
-    let heat = files::read_png(&scene.path("heat.png")).unwrap();
+    let heat = image::open(scene.path("heat.png")).unwrap();
     assert!(matches!(heat, image::DynamicImage::ImageLuma8(_)));
     let heat = heat.into_luma8();
     assert!(heat.pixels().any(|p| p.0[0] >= 150) && heat.pixels().any(|p| p.0[0] < 120));
-    let viz = files::read_rgb8(&scene.path("viz.png")).unwrap();
-    assert_eq!(viz.size(), (960, 240));
+    let viz = imageio::read_rgb8(&scene.path("viz.png")).unwrap();
+    assert_eq!((viz.width(), viz.height()), (960, 240));
     assert_no_temporaries(&scene.dir);
 }
 
@@ -131,14 +138,146 @@ fn bad_inputs_are_errors_naming_the_file() {
     let out = scene.run("rgb.png", "corrupt.png");
     scene.assert_fails_naming(&out, "corrupt.png", "corrupt");
     // Wrong bit depth: 8-bit depth.
-    files::write_gray8(&scene.path("depth8.png"), 320, 240, &[100; 320 * 240]).unwrap();
+    let depth8 = Gray8Image::from_vec(320, 240, vec![100; 320 * 240]).unwrap();
+    imageio::write_gray8(&scene.path("depth8.png"), &depth8).unwrap();
     let out = scene.run("rgb.png", "depth8.png");
     scene.assert_fails_naming(&out, "depth8.png", "16-bit");
     // Depth of another size than the colour image and the camera.
-    files::write_gray16(&scene.path("small.png"), 160, 120, &[600; 160 * 120]).unwrap();
+    let small = Gray16Image::from_vec(160, 120, vec![600; 160 * 120]).unwrap();
+    imageio::write_gray16(&scene.path("small.png"), &small).unwrap();
     let out = scene.run("rgb.png", "small.png");
     scene.assert_fails_naming(&out, "small.png", "320x240");
     // Colour that is a depth image.
     let out = scene.run("depth.png", "depth.png");
     scene.assert_fails_naming(&out, "depth.png", "8-bit RGB");
+}
+
+/// A scene folder with one synthetic frame (frame 0, no pushes), written with the scene
+/// module.
+fn write_scene(dir: &Path) {
+    let t = SyntheticTabletop::boxes(320, 240, 3).expect("test setup");
+    let k = t.intrinsics;
+    let scene = scene::Scene {
+        camera: SceneCamera {
+            width: 320,
+            height: 240,
+            fx: k.fx,
+            fy: k.fy,
+            cx: k.cx,
+            cy: k.cy,
+            depth_unit_m: 0.001,
+        },
+        rgb: vec![RgbImage::from_vec(320, 240, t.rgb.clone()).expect("test setup")],
+        depth: vec![
+            Gray16Image::from_vec(
+                320,
+                240,
+                t.depth_m
+                    .iter()
+                    .map(|z| (z * 1000.0).round() as u16)
+                    .collect(),
+            )
+            .expect("test setup"),
+        ],
+        labels: None,
+        flow: None,
+        actions: Vec::new(),
+    };
+    scene.write(dir).expect("test setup");
+}
+
+fn segment_scene(scene_dir: &Path, frame: &str, out: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_riseg"))
+        .args(["segment", "--scene"])
+        .arg(scene_dir)
+        .args(["--frame", frame, "-o"])
+        .arg(out.join("labels.png"))
+        .arg("--heatmap")
+        .arg(out.join("heat.png"))
+        .output()
+        .expect("test setup")
+}
+
+#[test]
+fn segment_reads_a_frame_of_a_scene_folder() {
+    let tmp = std::env::temp_dir().join(format!("riseg-cli-scene-{}", std::process::id()));
+    let _ = fs::remove_dir_all(&tmp);
+    fs::create_dir_all(&tmp).expect("test setup");
+    let scene_dir = tmp.join("scene_000");
+    write_scene(&scene_dir);
+
+    let out = segment_scene(&scene_dir, "0", &tmp);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let labels = image::open(tmp.join("labels.png")).unwrap();
+    assert!(matches!(labels, image::DynamicImage::ImageLuma16(_)));
+    assert_eq!((labels.width(), labels.height()), (320, 240));
+    let segments = labels.into_luma16().pixels().map(|p| p.0[0]).max().unwrap();
+    assert!(segments >= 3, "{segments} segments");
+    let heat = image::open(tmp.join("heat.png")).unwrap();
+    assert!(matches!(heat, image::DynamicImage::ImageLuma8(_)));
+    assert_eq!((heat.width(), heat.height()), (320, 240));
+    // Same frame through the three-file form: same labels.
+    let (rgb, depth) = scene::frame_paths(&scene_dir, 0);
+    let files = Command::new(env!("CARGO_BIN_EXE_riseg"))
+        .arg("segment")
+        .arg("--rgb")
+        .arg(&rgb)
+        .arg("--depth")
+        .arg(&depth)
+        .arg("--camera")
+        .arg(scene_dir.join(scene::CAMERA_FILE))
+        .arg("-o")
+        .arg(tmp.join("labels_files.png"))
+        .output()
+        .expect("test setup");
+    assert!(files.status.success());
+    assert_eq!(
+        fs::read(tmp.join("labels.png")).unwrap(),
+        fs::read(tmp.join("labels_files.png")).unwrap()
+    );
+
+    // A frame the scene does not have: the error names the missing file, nothing written.
+    for name in ["labels.png", "heat.png"] {
+        fs::remove_file(tmp.join(name)).unwrap();
+    }
+    let out = segment_scene(&scene_dir, "7", &tmp);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("000007.png") && stderr.contains("not found"),
+        "{stderr}"
+    );
+    assert!(!tmp.join("labels.png").exists() && !tmp.join("heat.png").exists());
+    // A folder that is no scene: the error names the camera file.
+    let out = segment_scene(&tmp, "0", &tmp);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains(scene::CAMERA_FILE), "{stderr}");
+    fs::remove_dir_all(&tmp).unwrap();
+}
+
+#[test]
+fn input_forms_are_exclusive_and_complete() {
+    let run = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_riseg"))
+            .arg("segment")
+            .args(args)
+            .args(["-o", "never.png"])
+            .output()
+            .expect("test setup");
+        assert!(!out.status.success(), "{args:?} should be refused");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    // Neither form.
+    assert!(run(&[]).contains("required"));
+    // Both forms.
+    let both = run(&[
+        "--scene", "s", "--frame", "0", "--rgb", "a.png", "--depth", "b.png", "--camera", "c.json",
+    ]);
+    assert!(both.contains("cannot be used with"), "{both}");
+    // Half a form.
+    assert!(run(&["--scene", "s"]).contains("--frame"));
+    assert!(run(&["--rgb", "a.png", "--depth", "b.png"]).contains("--camera"));
+    assert!(!Path::new("never.png").exists());
 }

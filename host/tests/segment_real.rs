@@ -14,7 +14,10 @@ use std::{
     path::{Path, PathBuf},
 };
 
-use riseg::segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams, files};
+use riseg::{
+    imageio,
+    segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams},
+};
 use riseg_core::Intrinsics;
 
 fn data_root() -> Option<PathBuf> {
@@ -41,12 +44,20 @@ fn data_root() -> Option<PathBuf> {
 
 /// Segments one frame and returns what is wrong with it, if anything.
 fn check_frame(name: &str, rgb: &Path, depth: &Path, k: &Intrinsics) -> Option<String> {
-    let rgb = files::read_rgb8(rgb).expect("colour PNG");
-    let depth = files::read_gray16(depth).expect("depth PNG");
-    assert_eq!(rgb.size(), depth.size(), "{name}: colour and depth sizes");
-    let (w, h) = (rgb.width as usize, rgb.height as usize);
-    let depth_m: Vec<f32> = depth.pixels.iter().map(|&d| f32::from(d) * 1e-3).collect();
-    let frame = RgbdFrame::new(w, h, &rgb.pixels, &depth_m).expect("frame");
+    let rgb = imageio::read_rgb8(rgb).expect("colour PNG");
+    let depth = imageio::read_gray16(depth).expect("depth PNG");
+    assert_eq!(
+        (rgb.width(), rgb.height()),
+        (depth.width(), depth.height()),
+        "{name}: colour and depth sizes"
+    );
+    let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+    let depth_m: Vec<f32> = depth
+        .as_slice()
+        .iter()
+        .map(|&d| f32::from(d) * 1e-3)
+        .collect();
+    let frame = RgbdFrame::new(w, h, rgb.as_slice(), &depth_m).expect("frame");
     let params = SegmenterParams::default();
     let mut seg = ClassicalSegmenter::new(params).expect("params");
     let out = seg

@@ -7,7 +7,9 @@
 //!    and their normals (where both exist) are within `grow_normal_deg`. Joining is
 //!    union-find, so the result does not depend on a visiting order. Two grown object
 //!    pixels that do not join are flagged in `step` (a depth step or sharp bend: if they
-//!    end up in one segment anyway, the segment is unsure there).
+//!    end up in one segment anyway, the segment is unsure there), unless the bend between
+//!    them is convex (each point behind the other's tangent plane): that is an object's
+//!    own edge, not a place where two objects meet.
 //! 2. Pixels on a blocking crease take the segment of the nearest grown pixel (a
 //!    breadth-first search from the grown pixels through the crease, across
 //!    depth-continuous steps only): a crease is split between its two sides.
@@ -74,6 +76,15 @@ fn union(parent: &mut [u32], a: u32, b: u32) {
     }
 }
 
+/// Whether the surface bends away from the camera between pixels `i` and `j` (a convex
+/// edge): each point lies behind the other's tangent plane (normals face the camera). An
+/// object's own edges are convex; where two objects meet, the surface folds towards the
+/// camera (a concave crease) or one point lies in front of the other's plane (occlusion).
+fn convex(pts: &[P3], nrm: &[P3], i: usize, j: usize) -> bool {
+    let (p, q, np, nq) = (pts[i], pts[j], nrm[i], nrm[j]);
+    np != [0.0; 3] && nq != [0.0; 3] && dot(np, sub(q, p)) < 0.0 && dot(nq, sub(p, q)) < 0.0
+}
+
 /// `true` if `q` continues `p`'s surface (module docs, rule 1).
 fn continuous(p: P3, np: P3, q: P3, params: &SegmenterParams) -> bool {
     let jump = params.depth_jump_at_m(p[2]);
@@ -132,8 +143,10 @@ pub(super) fn grow_segments(
             {
                 match joins(i, j) {
                     Some(true) => union(&mut s.comp, i as u32, j as u32),
-                    Some(false) => (step[i], step[j]) = (1, 1),
-                    None => {}
+                    Some(false) if !convex(inp.pts, inp.nrm, i, j) => {
+                        (step[i], step[j]) = (1, 1);
+                    }
+                    Some(false) | None => {}
                 }
             }
         }

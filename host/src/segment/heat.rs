@@ -7,8 +7,18 @@
 //!    - segment pixels on a soft (or blocking) concave crease: a bend where two objects may
 //!      meet inside one segment;
 //!    - segment pixels on a step: a neighbour they did not join in region growing (a depth
-//!      step or sharp bend; inside one segment it means the segment went around it);
+//!      step or sharp concave bend; inside one segment it means the segment went around
+//!      it). Convex bends, an object's own edges, are not flagged (see `grow`);
 //!    - segment pixels of a filled hole in depth;
+//!    - necks: a *notch* is a segment pixel on the segment's outline (a 4-neighbour is
+//!      unlabelled or off the image) whose disc of radius `neck_radius_m` holds at least
+//!      `neck_notch_share` pixels of its own segment (a straight outline holds about half,
+//!      a convex one less). Each notch is joined to the nearest other notch of its segment
+//!      between `neck_radius_m / 2` and `neck_chord_max_m` away whose straight chord lies
+//!      in the segment, and the chord's pixels are sources. Two convex objects merged
+//!      into one segment meet at a waist with a notch on either side; this is the only cue
+//!      where they touch at a point, such as two cylinders side by side, with no crease
+//!      or step in view;
 //!    - contacts: a segment pixel from which, along +x, −x, +y or −y, the first labelled
 //!      pixel has another label and a depth within `contact_depth_m`, and the unlabelled
 //!      pixels in between with a depth reading span at most `contact_gap_m` (pixels
@@ -40,6 +50,8 @@ const GAP: u8 = 2;
 /// Longest contact scan, pixels (bounds the work, and the width of a shadow in depth that
 /// may separate two touching objects).
 const MAX_SCAN_PX: usize = 32;
+/// Largest notch disc radius, pixels (bounds the work on close-up frames).
+const MAX_NECK_RADIUS_PX: isize = 24;
 
 /// Scratch of [`heatmap`], reused across frames.
 #[derive(Debug, Default)]
@@ -48,6 +60,7 @@ pub(super) struct HeatScratch {
     d_source: Vec<f32>,
     d_background: Vec<f32>,
     mean_z: Vec<(f64, u32)>,
+    notch: Vec<u32>,
     edt: EdtScratch,
 }
 
@@ -157,6 +170,9 @@ pub(super) fn heatmap(
         }
     }
 
+    // 1c. Necks.
+    necks(inp, params, &mut s.notch, &mut s.mark);
+
     // 2. Distance to the background.
     s.d_source.resize(n, 0.0);
     s.d_background.resize(n, 0.0);
@@ -193,5 +209,164 @@ pub(super) fn heatmap(
                 .clamp(0.0, 1.0);
             HEAT_CERTAIN + (f32::from(u8::MAX - HEAT_CERTAIN) * t) as u8
         };
+    }
+}
+
+/// Marks the necks of the segments as sources (module docs, rule 1).
+fn necks(inp: &HeatInput<'_>, params: &SegmenterParams, notch: &mut Vec<u32>, mark: &mut [u8]) {
+    let (w, h) = (inp.w, inp.h);
+    let labels = inp.labels;
+    let px_per_m = |z: f32| 1.0 / (z * inp.inv_focal);
+
+    // Notches: outline pixels (a 4-neighbour unlabelled or off the image) whose disc holds
+    // at least `neck_notch_share` of pixels of their own segment.
+    notch.clear();
+    for i in 0..w * h {
+        let (a, z) = (labels[i], inp.pts[i][2]);
+        if a == 0 || z <= 0.0 {
+            continue;
+        }
+        let (x, y) = (i % w, i / w);
+        let outline = [
+            (x > 0).then(|| i - 1),
+            (x + 1 < w).then(|| i + 1),
+            (y > 0).then(|| i - w),
+            (y + 1 < h).then(|| i + w),
+        ]
+        .into_iter()
+        .any(|j| j.is_none_or(|j| labels[j] == 0));
+        if !outline {
+            continue;
+        }
+        let r = ((params.neck_radius_m * px_per_m(z)) as isize).clamp(1, MAX_NECK_RADIUS_PX);
+        let (mut same, mut all) = (0u32, 0u32);
+        for dy in -r..=r {
+            for dx in -r..=r {
+                if dx * dx + dy * dy > r * r {
+                    continue;
+                }
+                all += 1;
+                let (qx, qy) = (x as isize + dx, y as isize + dy);
+                if qx >= 0
+                    && qy >= 0
+                    && (qx as usize) < w
+                    && (qy as usize) < h
+                    && labels[qy as usize * w + qx as usize] == a
+                {
+                    same += 1;
+                }
+            }
+        }
+        if same as f32 >= params.neck_notch_share * all as f32 {
+            notch.push(i as u32);
+        }
+    }
+
+    // Each notch's shortest chord to another notch of its segment: at least half the disc
+    // radius and at most `neck_chord_max_m` long, every pixel on it in the segment.
+    let on_chord = |p: (f32, f32), q: (f32, f32), steps: usize, t: usize| {
+        let f = t as f32 / steps as f32;
+        let x = (p.0 + f * (q.0 - p.0)).round() as usize;
+        let y = (p.1 + f * (q.1 - p.1)).round() as usize;
+        y * w + x
+    };
+    let xy = |i: usize| ((i % w) as f32, (i / w) as f32);
+    for (k, &p) in notch.iter().enumerate() {
+        let p = p as usize;
+        let a = labels[p];
+        let scale = px_per_m(inp.pts[p][2]);
+        let (max_px, min_px) = (
+            params.neck_chord_max_m * scale,
+            0.5 * params.neck_radius_m * scale,
+        );
+        let pp = xy(p);
+        let mut best: Option<(f32, (f32, f32))> = None;
+        // Notches are in row-major order: later ones more than `max_px` rows down are out
+        // of reach.
+        for &q in &notch[k + 1..] {
+            let q = q as usize;
+            let qq = xy(q);
+            if qq.1 - pp.1 > max_px {
+                break;
+            }
+            let d = (qq.0 - pp.0).hypot(qq.1 - pp.1);
+            if labels[q] != a || d > max_px || d < min_px || best.is_some_and(|(b, _)| b <= d) {
+                continue;
+            }
+            let steps = d.ceil() as usize;
+            if (1..steps).all(|t| labels[on_chord(pp, qq, steps, t)] == a) {
+                best = Some((d, qq));
+            }
+        }
+        if let Some((d, qq)) = best {
+            let steps = d.ceil() as usize;
+            for t in 0..=steps {
+                mark[on_chord(pp, qq, steps, t)] |= SOURCE;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two discs of radius 20 px whose centres are 38 px apart, both in segment 1, flat
+    /// at 0.6 m with no crease, step or hole: only the neck can make the waist uncertain.
+    #[test]
+    fn the_waist_of_two_merged_discs_is_uncertain() {
+        let (w, h) = (120, 60);
+        let inside = |x: usize, y: usize, cx: f32| {
+            let (dx, dy) = (x as f32 - cx, y as f32 - 30.0);
+            dx * dx + dy * dy <= 400.0
+        };
+        let labels: Vec<u16> = (0..w * h)
+            .map(|i| u16::from(inside(i % w, i / w, 41.0) || inside(i % w, i / w, 79.0)))
+            .collect();
+        let pts: Vec<P3> = (0..w * h).map(|_| [0.0, 0.0, 0.6]).collect();
+        let zeros = vec![0u8; w * h];
+        let inp = HeatInput {
+            w,
+            h,
+            pts: &pts,
+            crease: &zeros,
+            hole: &zeros,
+            step: &zeros,
+            labels: &labels,
+            segments: 1,
+            inv_focal: 1.0 / 600.0,
+        };
+        let mut heat = vec![0u8; w * h];
+        heatmap(
+            &inp,
+            &SegmenterParams::default(),
+            &mut HeatScratch::default(),
+            &mut heat,
+        );
+        let at = |x: usize, y: usize| heat[y * w + x];
+        assert!(
+            (HEAT_UNCERTAIN..HEAT_CERTAIN).contains(&at(60, 30)),
+            "{}",
+            at(60, 30)
+        );
+        assert!(at(41, 30) >= HEAT_CERTAIN && at(79, 30) >= HEAT_CERTAIN);
+        // One disc alone has no neck: its centre stays certain and nothing is uncertain.
+        let one: Vec<u16> = (0..w * h)
+            .map(|i| u16::from(inside(i % w, i / w, 41.0)))
+            .collect();
+        let mut heat = vec![0u8; w * h];
+        heatmap(
+            &HeatInput {
+                labels: &one,
+                ..inp
+            },
+            &SegmenterParams::default(),
+            &mut HeatScratch::default(),
+            &mut heat,
+        );
+        assert!(
+            heat.iter()
+                .all(|v| !(HEAT_UNCERTAIN..HEAT_CERTAIN).contains(v))
+        );
     }
 }

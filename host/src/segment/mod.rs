@@ -21,7 +21,6 @@
 
 mod classical;
 mod edt;
-pub mod files;
 mod geometry;
 mod grow;
 mod heat;

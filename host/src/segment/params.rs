@@ -113,13 +113,25 @@ pub struct SegmenterParams {
     /// Distance over which certain pixels ramp from 150 to 255 once clear of the band and
     /// the rim, metres.
     pub certain_ramp_m: f32,
-    /// Two segments closer than this in the image (measured at the pixel's depth) are in
-    /// near contact, metres.
+    /// Two segments closer than this in the image (measured at the pixel's depth, pixels
+    /// without depth not counted) are in contact, metres. 2 mm: about two pixels at
+    /// 0.6 m. Wider gaps are mostly objects that stand apart; marking them uncertain draws
+    /// FindAction to pairs that do not touch (on the scenes of
+    /// `tests/segment_calibration.rs`, 6 mm cost it several of the 23 merged scenes).
     pub contact_gap_m: f32,
-    /// ... provided their depths there differ by less than this, metres. 10 cm (the paper's
-    /// `d_a`): an occlusion boundary between two objects may hide a contact, but objects
-    /// farther apart than this are not a pair FindAction would push between.
+    /// ... provided their depths there differ by less than this, metres. 3 cm: objects of
+    /// a tabletop scene that touch side by side differ less in height seen from above;
+    /// a larger difference is mostly one object occluding another farther back.
     pub contact_depth_m: f32,
+    /// Radius of the disc that finds notches in a segment's outline (heatmap necks),
+    /// metres. 1 cm: larger than the pixel noise of the outline, smaller than the objects.
+    pub neck_radius_m: f32,
+    /// Smallest share of a notch's disc that lies in its own segment (0.5 on a straight
+    /// outline; 0.65 is a clear concave bend), in `(0.5, 1]`.
+    pub neck_notch_share: f32,
+    /// Longest chord across a neck, metres (the narrowest object of interest is about
+    /// 3 cm wide).
+    pub neck_chord_max_m: f32,
 }
 
 impl Default for SegmenterParams {
@@ -150,8 +162,11 @@ impl Default for SegmenterParams {
             rim_m: 0.004,
             rim_heat: 100,
             certain_ramp_m: 0.02,
-            contact_gap_m: 0.006,
-            contact_depth_m: 0.1,
+            contact_gap_m: 0.002,
+            contact_depth_m: 0.03,
+            neck_radius_m: 0.01,
+            neck_notch_share: 0.65,
+            neck_chord_max_m: 0.03,
         }
     }
 }
@@ -176,6 +191,8 @@ impl SegmenterParams {
             ("band_m", self.band_m),
             ("certain_ramp_m", self.certain_ramp_m),
             ("contact_depth_m", self.contact_depth_m),
+            ("neck_radius_m", self.neck_radius_m),
+            ("neck_chord_max_m", self.neck_chord_max_m),
         ];
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
@@ -211,6 +228,9 @@ impl SegmenterParams {
         }
         if !(self.min_table_share > 0.0 && self.min_table_share <= 1.0) {
             return bad("min_table_share", "must be in (0, 1]");
+        }
+        if !(self.neck_notch_share > 0.5 && self.neck_notch_share <= 1.0) {
+            return bad("neck_notch_share", "must be in (0.5, 1]");
         }
         if self.ransac_iterations == 0 {
             return bad("ransac_iterations", "must be > 0");

@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # riseg's DIS flow against OpenCV's DIS presets on the same 640x480 pairs with exact ground
-# truth, both on one thread, in one run. Prints one table.
+# truth, both on one thread, in one run. Prints two tables: textured rigid objects moved on
+# a textured background, and the simulator's pushes (the frames `riseg gen` writes).
 #
 #   bash bench/flow.sh [PAIRS] [RUNS]        (defaults: 6 pairs, 7 timed runs per pair)
 #
 # Needs python3 with opencv-python-headless and numpy; if they are missing, a virtualenv
 # is made under ${RISEG_BENCH_VENV:-$HOME/.cache/riseg-bench-venv} and they are installed
-# from PyPI. The pairs are written to ${RISEG_FLOW_PAIRS:-/tmp/riseg-flow-pairs}.
+# from PyPI. The pairs are written to ${RISEG_FLOW_PAIRS:-/tmp/riseg-flow-pairs}/{textured,sim}.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -28,14 +29,17 @@ EXAMPLE="${CARGO_TARGET_DIR:-target}/release/examples/flow_pairs"
 
 ROWS="$(mktemp)"
 trap 'rm -f "$ROWS"' EXIT
-"$EXAMPLE" "$DIR" --pairs "$PAIRS" --runs "$RUNS" >>"$ROWS"
-"$PY" bench/flow_vs_opencv.py "$DIR" --runs "$RUNS" >>"$ROWS"
-
-echo "Dense flow, 640x480, $PAIRS pairs (textured rigid objects, exact ground truth), one thread,"
-echo "median of $RUNS runs per pair, averaged over pairs; $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)."
-echo
-printf '| %-22s | %15s | %15s | %9s |\n' method "EPE objects px" "EPE all px" "time ms"
-printf '|%s|%s|%s|%s|\n' "------------------------" "-----------------" "-----------------" "-----------"
-sort -k4 -n -t$'\t' "$ROWS" | while IFS=$'\t' read -r name obj all ms; do
-  printf '| %-22s | %15s | %15s | %9s |\n' "$name" "$obj" "$all" "$ms"
+for KIND in textured sim; do
+  : >"$ROWS"
+  "$EXAMPLE" "$DIR/$KIND" --kind "$KIND" --pairs "$PAIRS" --runs "$RUNS" >>"$ROWS"
+  "$PY" bench/flow_vs_opencv.py "$DIR/$KIND" --runs "$RUNS" >>"$ROWS"
+  echo "Dense flow, 640x480, $PAIRS $KIND pairs (exact ground truth), one thread,"
+  echo "median of $RUNS runs per pair, averaged over pairs; $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)."
+  echo
+  printf '| %-22s | %15s | %15s | %9s |\n' method "EPE objects px" "EPE all px" "time ms"
+  printf '|%s|%s|%s|%s|\n' "------------------------" "-----------------" "-----------------" "-----------"
+  sort -k4 -n -t$'\t' "$ROWS" | while IFS=$'\t' read -r name obj all ms; do
+    printf '| %-22s | %15s | %15s | %9s |\n' "$name" "$obj" "$all" "$ms"
+  done
+  echo
 done

@@ -1,6 +1,9 @@
-//! Writes image pairs with exact ground-truth flow (textured rigid objects on a textured
-//! background, 640x480, from `riseg::flow::testdata`) into a folder, then times riseg's
-//! DIS flow on them on one thread and prints endpoint errors.
+//! Writes image pairs with exact ground-truth flow into a folder, then times riseg's DIS
+//! flow on them on one thread and prints endpoint errors. Two kinds of pairs, 640x480:
+//! `--kind textured` (default), textured rigid objects on a textured background moved by
+//! `riseg::flow::testdata`; `--kind sim`, the first push of the simulator's scenes (the
+//! frames `riseg gen` writes, colour rounded to 8 bits; flow unknown where a pixel has no
+//! 3-D point, 1e10 in the `.flo`, is skipped).
 //!
 //! ```sh
 //! cargo run --release -p riseg --example flow_pairs -- /tmp/flow-pairs --pairs 6 --runs 7
@@ -48,6 +51,78 @@ struct Args {
     /// Print one row per pair as well.
     #[arg(long)]
     per_pair: bool,
+    /// Which pairs: `textured` (rigid textured objects) or `sim` (simulator pushes).
+    #[arg(long, default_value = "textured")]
+    kind: String,
+}
+
+/// One pair to write: both images (8-bit RGB, row-major), the true flow, the moving mask.
+struct Written {
+    first: Vec<u8>,
+    second: Vec<u8>,
+    flow: Flow,
+    moving: Vec<u8>,
+}
+
+fn textured_pair(w: usize, h: usize, seed: u64) -> Written {
+    let p = Scene::random_objects(w, h, seed).render();
+    let moving = p
+        .labels
+        .iter()
+        .zip(p.flow.as_slice())
+        .map(|(&l, v)| {
+            if l > 0 && (v[0] != 0.0 || v[1] != 0.0) {
+                255
+            } else {
+                0
+            }
+        })
+        .collect();
+    Written {
+        first: p.first,
+        second: p.second,
+        flow: p.flow,
+        moving,
+    }
+}
+
+/// Frames 0 and 1 of the simulated scene `seed` (one scripted push), with the exact flow;
+/// moving = object pixels whose true flow is known and longer than 0.1 px.
+fn sim_pair(seed: u64) -> Result<Written> {
+    let g = riseg::generate::generate_scene(seed, 1)?;
+    let s = &g.scene;
+    let (w, h) = (s.camera.width as usize, s.camera.height as usize);
+    let flow_image = s
+        .flow
+        .as_ref()
+        .and_then(|f| f.first())
+        .context("the generated scene has no flow")?;
+    let labels = s
+        .labels
+        .as_ref()
+        .and_then(|l| l.first())
+        .context("the generated scene has no labels")?;
+    let flow = Flow::new(w, h, flow_image.as_slice().to_vec())?;
+    let moving = labels
+        .as_slice()
+        .iter()
+        .zip(flow.as_slice())
+        .map(|(&l, v)| {
+            let known = v[0].abs() < 1e9 && v[1].abs() < 1e9;
+            if l > 0 && known && v[0].hypot(v[1]) > 0.1 {
+                255
+            } else {
+                0
+            }
+        })
+        .collect();
+    let rgb = |t: usize| s.rgb.get(t).map(|i| i.as_slice().as_flattened().to_vec());
+    Ok(Written {
+        first: rgb(0).context("frame 0")?,
+        second: rgb(1).context("frame 1")?,
+        flow,
+        moving,
+    })
 }
 
 fn write_png(path: &Path, width: usize, height: usize, data: Vec<u8>, rgb: bool) -> Result<()> {
@@ -110,19 +185,13 @@ fn main() -> Result<()> {
     let mut pairs = Vec::new();
     for i in 0..args.pairs {
         let name = format!("pair_{i:02}");
-        let p = Scene::random_objects(w, h, args.seed + i as u64).render();
-        let moving: Vec<u8> = p
-            .labels
-            .iter()
-            .zip(p.flow.as_slice())
-            .map(|(&l, v)| {
-                if l > 0 && (v[0] != 0.0 || v[1] != 0.0) {
-                    255
-                } else {
-                    0
-                }
-            })
-            .collect();
+        let seed = args.seed + i as u64;
+        let p = match args.kind.as_str() {
+            "textured" => textured_pair(w, h, seed),
+            "sim" => sim_pair(seed)?,
+            other => anyhow::bail!("unknown --kind {other:?} (textured or sim)"),
+        };
+        let moving = p.moving;
         write_png(&args.dir.join(format!("{name}_a.png")), w, h, p.first, true)?;
         write_png(
             &args.dir.join(format!("{name}_b.png")),

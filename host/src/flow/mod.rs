@@ -270,7 +270,9 @@ impl Flow {
     }
 
     /// Mean endpoint error `|self - truth|` (pixels) over the pixels `mask` selects (all
-    /// pixels when `mask` is `None`). Summed in `f64` in row-major order.
+    /// pixels when `mask` is `None`) whose true flow is known: a `truth` component of
+    /// magnitude `1e9` or more means unknown (the Middlebury convention) and the pixel is
+    /// skipped. Summed in `f64` in row-major order.
     ///
     /// # Errors
     /// [`FlowError::SizeMismatch`] if the fields differ in size, [`FlowError::BadLength`]
@@ -290,7 +292,8 @@ impl Flow {
         let mut sum = 0.0f64;
         let mut count = 0usize;
         for (i, (a, b)) in self.data.iter().zip(&truth.data).enumerate() {
-            if mask.is_none_or(|m| m[i]) {
+            let known = b[0].abs() < 1e9 && b[1].abs() < 1e9;
+            if known && mask.is_none_or(|m| m[i]) {
                 sum += f64::from((a[0] - b[0]).hypot(a[1] - b[1]));
                 count += 1;
             }

@@ -19,7 +19,8 @@
 use core::fmt::Write as _;
 use std::path::Path;
 
-use riseg_core::{Config, Intrinsics};
+use nalgebra::Point3;
+use riseg_core::{Config, Intrinsics, action::Push};
 
 use crate::{
     bench::score_frame,
@@ -140,13 +141,18 @@ pub fn panels(f: &EpisodeFrame<'_>) -> RgbImage {
     for c in f.action.certain() {
         dot(&mut riseg_panel, clip, c.centre_px, WHITE, 2);
     }
-    if let Decision::Push { push, command, .. } = f.decision {
+    if let Decision::Push {
+        push,
+        edge_cam_m,
+        command,
+    } = f.decision
+    {
         draw_push(
             &mut riseg_panel,
             &f.frame.intrinsics,
-            push.start_px,
+            &push,
+            &edge_cam_m,
             &command,
-            f,
         );
     }
     let dim = f.frame.rgb.map(|c| c.map(|v| v / 3));
@@ -186,32 +192,23 @@ pub fn panels(f: &EpisodeFrame<'_>) -> RgbImage {
     })
 }
 
-/// Draws the push as the tool travels: from its start to its end, projected through the
-/// camera (the command is in the robot frame; `f`'s intrinsics and the hand-eye pose
-/// stored in the decision's push bring it back to pixels).
+/// Draws the tool's path, projected through the camera: from the object's edge backed
+/// off by the approach (the command's length beyond FindAction's), along the push
+/// direction, to the end of the push; a dot at FindAction's start if it does not project.
 fn draw_push(
     img: &mut RgbImage,
     intrinsics: &Intrinsics,
-    start_px: [f32; 2],
+    push: &Push,
+    edge_cam_m: &Point3<f32>,
     command: &PushCommand,
-    f: &EpisodeFrame<'_>,
 ) {
     let clip = Clip::all(img);
-    let Decision::Push {
-        push, edge_cam_m, ..
-    } = f.decision
-    else {
-        return;
-    };
-    // The tool's path in the camera frame, at the height of the edge point: from the edge
-    // backed off by the approach, along the push direction, for the command's length.
     let approach_m = command.length_m - push.length_m;
-    let dir = push.direction_cam;
-    let from = edge_cam_m - dir * approach_m;
-    let to = edge_cam_m + dir * push.length_m;
+    let from = edge_cam_m - push.direction_cam * approach_m;
+    let to = edge_cam_m + push.direction_cam * push.length_m;
     match (intrinsics.project(&from), intrinsics.project(&to)) {
         (Some(a), Some(b)) => arrow(img, clip, [a.x, a.y], [b.x, b.y], YELLOW, 3),
-        _ => dot(img, clip, start_px, YELLOW, 3),
+        _ => dot(img, clip, push.start_px, YELLOW, 3),
     }
 }
 
@@ -234,7 +231,8 @@ pub fn markdown(report: &DemoReport) -> String {
          certain cluster centres (white) and the push chosen on this frame (yellow arrow, \
          the tool's path); bottom left the body frames of the last step coloured by twist \
          group (grey: static or ungrouped); bottom right the optical flow from the previous \
-         frame (hue = direction, saturation = length).\n"
+         frame (hue = direction, saturation = length). Frame 0 has no step yet, so its \
+         bottom panels show only the dimmed colour image.\n"
     );
     for f in &report.frames {
         let _ = writeln!(md, "## Frame {}\n", f.t);

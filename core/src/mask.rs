@@ -26,8 +26,12 @@
 //! 5. **Label.** Every group but the largest (most seeds) of a split segment gets a new
 //!    label; the largest keeps the segment's label, and so do pixels no group explains.
 //! 6. **Merge** (over-segmentation, beyond the paper). Two moving groups whose frames lay
-//!    in different segments at `t` but whose twists are closer than
-//!    [`Config::merge_twist_m`] are one body seen as two segments: their labels unite.
+//!    in different segments at `t` and in different static segments at `t+1`, but whose
+//!    twists are closer than [`Config::merge_twist_m`], are one body that the static
+//!    segmenter cut in two: their labels unite. Splits accumulate: two segments of the
+//!    accumulated mask that one static segment holds were split by motion evidence once
+//!    (the static mask alone never separated them), and moving alike later is no evidence
+//!    of one body, so they never merge here.
 //! 7. **Components.** The output segments are the 4-connected components of these labels
 //!    (two objects that both stayed still share the zero motion but not a region, and
 //!    merged labels that do not touch stay apart), and components smaller than
@@ -377,7 +381,20 @@ pub fn correct_mask(
             }
         }
     }
-    let merged_segments = merge_same_motion(seeds, groups, cfg, next, segs.target, labels_t1);
+    // The static label of each segment (segments never span two static segments: step 2
+    // keys by the static label and absorbs fragments only within their static segment).
+    for (seg_row, static_row) in segment
+        .chunks(width)
+        .zip((0..height).map(|y| static_t1.row(y).unwrap_or(&[])))
+    {
+        for (&seg, &st) in seg_row.iter().zip(static_row) {
+            if let Some(slot) = segs.key.get_mut(seg as usize) {
+                *slot = u32::from(st);
+            }
+        }
+    }
+    let merged_segments =
+        merge_same_motion(seeds, groups, segs.key, cfg, next, segs.target, labels_t1);
     for (k, &l) in key.iter_mut().zip(labels_t1.iter()) {
         *k = u32::from(l);
     }
@@ -648,11 +665,14 @@ fn absorb_fragments(
 }
 
 /// Step 6 (module docs): unites the labels of moving groups from different segments at
-/// `t` whose twists are closer than [`Config::merge_twist_m`], relabelling `labels` (labels
-/// below `next`); `parent` is scratch of at least `next` entries. Returns the merges made.
+/// `t` and in different static segments at `t+1` (`static_of` maps a segment to its static
+/// label) whose twists are closer than [`Config::merge_twist_m`], relabelling `labels`
+/// (labels below `next`); `parent` is scratch of at least `next` entries. Returns the
+/// merges made.
 fn merge_same_motion(
     seeds: &[[u32; 3]],
     groups: &FrameGroups<'_>,
+    static_of: &[u32],
     cfg: &Config,
     next: u32,
     parent: &mut [u32],
@@ -696,7 +716,9 @@ fn merge_same_motion(
         let Some((la, ga)) = moving(a) else { continue };
         for b in seeds.get(i + 1..).unwrap_or(&[]) {
             let Some((lb, gb)) = moving(b) else { continue };
+            let static_label = |e: &[u32; 3]| static_of.get(e[0] as usize).copied();
             if ga.label == gb.label
+                || static_label(a) == static_label(b)
                 || ga.twist.distance(&gb.twist, cfg.length_scale_m) >= cfg.merge_twist_m
             {
                 continue;

@@ -615,6 +615,110 @@ pub(crate) mod tests {
         assert_eq!(distinct_labels(&out), 2);
     }
 
+    /// Look-alike box tops of one height, flush in a `cols × rows` grid (6 cm pitch, 0.2 mm
+    /// gaps), box `i` (row-major, label `i + 1`) moved by `motions[i]`.
+    fn pack(cols: usize, rows: usize, motions: &[Pose]) -> Vec<SynthBox> {
+        (0..cols * rows)
+            .map(|i| {
+                let (c, r) = ((i % cols) as f32, (i / cols) as f32);
+                let x = (c - (cols as f32 - 1.0) / 2.0) * 0.06;
+                let y = (r - (rows as f32 - 1.0) / 2.0) * 0.06;
+                let mut b = box_at(x, y, 0.6, [0.0299, 0.0299], i as u16 + 1);
+                b.motion = motions[i];
+                b
+            })
+            .collect()
+    }
+
+    /// For each group of true objects that should share one label, the best IoU a
+    /// predicted label reaches with their union.
+    fn group_ious(truth: &[u16], predicted: &[u16], groups: &[&[u16]]) -> Vec<f64> {
+        let merged: Vec<u16> = truth
+            .iter()
+            .map(|&l| {
+                groups
+                    .iter()
+                    .position(|g| g.contains(&l))
+                    .map_or(0, |g| g as u16 + 1)
+            })
+            .collect();
+        best_ious(&merged, predicted)
+            .into_iter()
+            .map(|(_, iou)| iou)
+            .collect()
+    }
+
+    #[test]
+    fn a_two_by_two_pack_with_one_column_sheared_becomes_two_segments() {
+        // Column 2 (boxes 2 and 4) slides 2 cm along the face it shares with column 1.
+        let still = Pose::identity();
+        let shear = slide_y(0.02);
+        let r = render(&pack(2, 2, &[still, shear, still, shear]), 320, 240);
+        let (out, report) = step_merged(&r, &Config::PAPER);
+        assert_eq!(distinct_labels(&out), 2, "{report:?}");
+        for iou in group_ious(&r.labels_t1, &out, &[&[1, 3], &[2, 4]]) {
+            assert!(iou >= 0.95, "IoU {iou:.3} ({report:?})");
+        }
+    }
+
+    #[test]
+    fn a_row_of_five_with_alternating_motions_gets_five_segments() {
+        let still = Pose::identity();
+        let boxes = pack(
+            5,
+            1,
+            &[still, slide_y(0.015), still, slide_y(-0.015), still],
+        );
+        let r = render(&boxes, 320, 240);
+        let (out, report) = step_merged(&r, &Config::PAPER);
+        assert_eq!(distinct_labels(&out), 5, "{report:?}");
+        for (id, iou) in best_ious(&r.labels_t1, &out) {
+            assert!(iou >= 0.95, "object {id}: IoU {iou:.3} ({report:?})");
+        }
+    }
+
+    #[test]
+    fn a_two_by_three_pack_with_one_corner_box_pushed_splits_it_off() {
+        let still = Pose::identity();
+        let mut motions = [still; 6];
+        motions[5] = slide_y(0.02);
+        let r = render(&pack(3, 2, &motions), 320, 240);
+        let (out, report) = step_merged(&r, &Config::PAPER);
+        assert_eq!(distinct_labels(&out), 2, "{report:?}");
+        for iou in group_ious(&r.labels_t1, &out, &[&[1, 2, 3, 4, 5], &[6]]) {
+            assert!(iou >= 0.95, "IoU {iou:.3} ({report:?})");
+        }
+    }
+
+    #[test]
+    fn a_split_stays_split_when_a_later_push_moves_both_parts_alike() {
+        // Push 1 shears column 2 off column 1; push 2 slides the whole pack along x. One
+        // shared motion is no evidence of one body: the two columns stay two segments,
+        // although the static mask still merges them.
+        let still = Pose::identity();
+        let shear = slide_y(0.02);
+        let first = pack(2, 2, &[still, shear, still, shear]);
+        let r1 = render(&first, 320, 240);
+        let (split, _) = step_merged(&r1, &Config::PAPER);
+        assert_eq!(distinct_labels(&split), 2);
+        let slide: Pose = Translation3::new(0.012, 0.0, 0.0).into();
+        let second: Vec<SynthBox> = first
+            .iter()
+            .map(|b| SynthBox {
+                camera_from_box: b.motion * b.camera_from_box,
+                motion: slide,
+                ..*b
+            })
+            .collect();
+        let r2 = render(&second, 320, 240);
+        let merged_t1: Vec<u16> = r2.labels_t1.iter().map(|&l| u16::from(l != 0)).collect();
+        let (out, report) = step_with(&r2, &split, &merged_t1, &Config::PAPER, |_| {});
+        assert_eq!(distinct_labels(&out), 2, "{report:?}");
+        for iou in group_ious(&r2.labels_t1, &out, &[&[1, 3], &[2, 4]]) {
+            assert!(iou >= 0.95, "IoU {iou:.3} ({report:?})");
+        }
+    }
+
     #[test]
     fn nothing_moved_changes_nothing() {
         let r = render(&row(&[Pose::identity(); 3]), 320, 240);

@@ -25,6 +25,14 @@
 //!      without depth, such as the shadow a structured-light camera casts beside an
 //!      object, do not count, up to 32 pixels in all); the unlabelled pixels in between are
 //!      sources too.
+//!    - packs: a segment larger than one object (the two in-plane principal axes of its
+//!      3-D points give lengths `L₁ ≥ L₂`, `L = √(12 λ)` as for a uniform rectangle;
+//!      oversized when `L₁ > pack_max_len_m` or `L₁·L₂ > pack_max_area_m2`) is a pack of
+//!      look-alike objects the segmenter could not tell apart: it is cut into a grid of
+//!      `round(L / pack_cell_m)` cells per axis (at least two along `L₁`), and the
+//!      one-pixel cut lines are sources. The cuts need not fall on the true seams: they
+//!      give FindAction certain cells with uncertain bands between, so a push shears one
+//!      part of the pack along another instead of stopping the loop;
 //! 2. **Background** `B`: unlabelled pixels that are not contact-gap pixels.
 //! 3. With `d_S`, `d_B` the distances (metres) to `S` and `B`, a segment pixel gets
 //!    - `120 + ⌊30 · d_S / band_m⌋` (120..=149) if `d_S < band_m` (uncertain band);
@@ -61,6 +69,7 @@ pub(super) struct HeatScratch {
     d_background: Vec<f32>,
     mean_z: Vec<(f64, u32)>,
     notch: Vec<u32>,
+    moments: Vec<Moments>,
     edt: EdtScratch,
 }
 
@@ -173,6 +182,9 @@ pub(super) fn heatmap(
     // 1c. Necks.
     necks(inp, params, &mut s.notch, &mut s.mark);
 
+    // 1d. Packs: segments larger than one object.
+    pack_cuts(inp, params, &mut s.moments, &mut s.mark);
+
     // 2. Distance to the background.
     s.d_source.resize(n, 0.0);
     s.d_background.resize(n, 0.0);
@@ -209,6 +221,106 @@ pub(super) fn heatmap(
                 .clamp(0.0, 1.0);
             HEAT_CERTAIN + (f32::from(u8::MAX - HEAT_CERTAIN) * t) as u8
         };
+    }
+}
+
+/// First and second moments of a segment's 3-D points (camera frame, metres).
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Moments {
+    count: f64,
+    sum: [f64; 3],
+    outer: [[f64; 3]; 3],
+}
+
+impl Moments {
+    fn add(&mut self, p: P3) {
+        let p = p.map(f64::from);
+        self.count += 1.0;
+        for (a, pa) in p.iter().enumerate() {
+            self.sum[a] += pa;
+            for (b, pb) in p.iter().enumerate() {
+                self.outer[a][b] += pa * pb;
+            }
+        }
+    }
+
+    /// Centroid and the two in-plane principal axes with their lengths: a uniform
+    /// rectangle of side `L` along an axis has variance `L²/12` there, so `L = √(12 λ)`
+    /// (robust to a few stray points, unlike the span).
+    fn axes(&self) -> Option<([f64; 3], [([f64; 3], f64); 2])> {
+        if self.count < 3.0 {
+            return None;
+        }
+        let mean = self.sum.map(|v| v / self.count);
+        let cov =
+            nalgebra::Matrix3::from_fn(|a, b| self.outer[a][b] / self.count - mean[a] * mean[b]);
+        let eig = cov.symmetric_eigen();
+        let mut order = [0usize, 1, 2];
+        order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
+        let axis = |k: usize| {
+            let v = eig.eigenvectors.column(order[k]);
+            (
+                [v[0], v[1], v[2]],
+                (12.0 * eig.eigenvalues[order[k]].max(0.0)).sqrt(),
+            )
+        };
+        Some((mean, [axis(0), axis(1)]))
+    }
+}
+
+/// Marks cut lines through segments larger than one object as sources (module docs,
+/// rule 1, packs).
+fn pack_cuts(
+    inp: &HeatInput<'_>,
+    params: &SegmenterParams,
+    moments: &mut Vec<Moments>,
+    mark: &mut [u8],
+) {
+    moments.clear();
+    moments.resize(inp.segments + 1, Moments::default());
+    for (&l, &p) in inp.labels.iter().zip(inp.pts) {
+        if l != 0 && p[2] > 0.0 {
+            if let Some(m) = moments.get_mut(usize::from(l)) {
+                m.add(p);
+            }
+        }
+    }
+    for (label, m) in moments.iter().enumerate().skip(1) {
+        let Some((centre, axes)) = m.axes() else {
+            continue;
+        };
+        let [(_, long_m), (_, short_m)] = axes;
+        let oversized = long_m > f64::from(params.pack_max_len_m)
+            || long_m * short_m > f64::from(params.pack_max_area_m2);
+        if !oversized {
+            continue;
+        }
+        let cell_m = f64::from(params.pack_cell_m);
+        // Cells per axis; the long axis is cut at least once.
+        let cells = [
+            ((long_m / cell_m).round() as usize).clamp(2, 16),
+            ((short_m / cell_m).round() as usize).clamp(1, 16),
+        ];
+        for (i, (&l, &p)) in inp.labels.iter().zip(inp.pts).enumerate() {
+            if usize::from(l) != label || p[2] <= 0.0 {
+                continue;
+            }
+            // A cut is one pixel wide: within half a pixel of a cut position.
+            let half_px_m = 0.5 * f64::from(p[2] * inp.inv_focal);
+            let d = [0, 1, 2].map(|a| f64::from(p[a]) - centre[a]);
+            let on_cut = axes.iter().zip(cells).any(|((axis, len_m), n)| {
+                let along = d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2];
+                // Position in cells from the start of the axis.
+                let pos = (along / len_m + 0.5) * n as f64;
+                let nearest = pos.round();
+                nearest >= 1.0
+                    && nearest <= (n - 1) as f64
+                    && ((pos - nearest) * len_m / n as f64).abs() <= half_px_m
+            });
+            if on_cut {
+                mark[i] |= SOURCE;
+            }
+        }
     }
 }
 
@@ -368,5 +480,69 @@ mod tests {
             heat.iter()
                 .all(|v| !(HEAT_UNCERTAIN..HEAT_CERTAIN).contains(v))
         );
+    }
+
+    /// A flat square segment of `side_px` pixels at 0.6 m (1 mm per pixel), centred.
+    fn flat_square(w: usize, h: usize, side_px: usize) -> (Vec<u16>, Vec<P3>) {
+        let (x0, y0) = ((w - side_px) / 2, (h - side_px) / 2);
+        let inside =
+            |x: usize, y: usize| (x0..x0 + side_px).contains(&x) && (y0..y0 + side_px).contains(&y);
+        let labels = (0..w * h)
+            .map(|i| u16::from(inside(i % w, i / w)))
+            .collect();
+        let pts = (0..w * h)
+            .map(|i| {
+                let (x, y) = (
+                    (i % w) as f32 - w as f32 / 2.0,
+                    (i / w) as f32 - h as f32 / 2.0,
+                );
+                [x * 0.001, y * 0.001, 0.6]
+            })
+            .collect();
+        (labels, pts)
+    }
+
+    fn heat_of(w: usize, h: usize, labels: &[u16], pts: &[P3]) -> Vec<u8> {
+        let zeros = vec![0u8; w * h];
+        let mut heat = vec![0u8; w * h];
+        heatmap(
+            &HeatInput {
+                w,
+                h,
+                pts,
+                crease: &zeros,
+                hole: &zeros,
+                step: &zeros,
+                labels,
+                segments: 1,
+                inv_focal: 1.0 / 600.0,
+            },
+            &SegmenterParams::default(),
+            &mut HeatScratch::default(),
+            &mut heat,
+        );
+        heat
+    }
+
+    /// A 12 cm square (a 2x2 pack of 6 cm boxes flush, nothing to see between them) is
+    /// cut: its middle is uncertain, the cells on either side certain. A 6 cm square (one
+    /// box) is not.
+    #[test]
+    fn a_segment_larger_than_one_object_is_cut_into_cells() {
+        let (w, h) = (200, 200);
+        let (labels, pts) = flat_square(w, h, 120);
+        let heat = heat_of(w, h, &labels, &pts);
+        let uncertain = |v: u8| (HEAT_UNCERTAIN..HEAT_CERTAIN).contains(&v);
+        let at = |x: usize, y: usize| heat[y * w + x];
+        assert!(
+            uncertain(at(100, 70)) || uncertain(at(70, 100)),
+            "{}",
+            at(100, 70)
+        );
+        assert!(at(70, 70) >= HEAT_CERTAIN && at(130, 130) >= HEAT_CERTAIN);
+        let (labels, pts) = flat_square(w, h, 60);
+        let heat = heat_of(w, h, &labels, &pts);
+        assert!(heat.iter().all(|&v| !uncertain(v)));
+        assert!(heat[100 * w + 100] >= HEAT_CERTAIN);
     }
 }

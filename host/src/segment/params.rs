@@ -132,6 +132,14 @@ pub struct SegmenterParams {
     /// Longest chord across a neck, metres (the narrowest object of interest is about
     /// 3 cm wide).
     pub neck_chord_max_m: f32,
+    /// A segment whose principal length exceeds this is a pack of several objects (heatmap
+    /// packs), metres. 10 cm: the largest single object of interest is about 7 cm.
+    pub pack_max_len_m: f32,
+    /// ... or whose principal area (length times width) exceeds this, square metres:
+    /// 55 cm², above a 7 cm square box, below four 4 cm boxes packed 2x2.
+    pub pack_max_area_m2: f32,
+    /// Nominal size of one object of a pack: the cut grid's cell, metres.
+    pub pack_cell_m: f32,
 }
 
 impl Default for SegmenterParams {
@@ -167,6 +175,9 @@ impl Default for SegmenterParams {
             neck_radius_m: 0.01,
             neck_notch_share: 0.65,
             neck_chord_max_m: 0.03,
+            pack_max_len_m: 0.10,
+            pack_max_area_m2: 0.0055,
+            pack_cell_m: 0.05,
         }
     }
 }
@@ -193,6 +204,9 @@ impl SegmenterParams {
             ("contact_depth_m", self.contact_depth_m),
             ("neck_radius_m", self.neck_radius_m),
             ("neck_chord_max_m", self.neck_chord_max_m),
+            ("pack_max_len_m", self.pack_max_len_m),
+            ("pack_max_area_m2", self.pack_max_area_m2),
+            ("pack_cell_m", self.pack_cell_m),
         ];
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {

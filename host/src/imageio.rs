@@ -1,5 +1,5 @@
-//! Owned images and their files: 8-bit RGB PNG, 16-bit grey PNG (depth, labels) and
-//! Middlebury `.flo` optical flow.
+//! Owned images and their files: 8-bit RGB PNG, 16-bit grey PNG (depth, labels), 8-bit
+//! grey PNG (heatmaps) and Middlebury `.flo` optical flow.
 //!
 //! Contract:
 //! - [`Image<T>`] is row-major with no padding: pixel `(x, y)` is `data[y·width + x]`, and
@@ -308,6 +308,22 @@ fn wrong_format(path: &Path, expected: &'static str, found: &DynamicImage) -> Im
     )
 }
 
+/// Reads `path` with `read` (one of this module's readers) and checks that the image is
+/// `width` x `height` pixels.
+///
+/// # Errors
+/// `read`'s errors, or [`ImageProblem::WrongSize`] naming `path`.
+pub fn read_sized<T>(
+    path: &Path,
+    width: u32,
+    height: u32,
+    read: impl FnOnce(&Path) -> Result<Image<T>, ImageIoError>,
+) -> Result<Image<T>, ImageIoError> {
+    let image = read(path)?;
+    ImageIoError::expect_size(path, &image, width, height)?;
+    Ok(image)
+}
+
 /// Reads an 8-bit RGB PNG. An 8-bit RGBA PNG is accepted too (alpha is dropped), since
 /// other tools save colour images that way.
 ///
@@ -345,6 +361,22 @@ pub fn read_gray16(path: &Path) -> Result<Gray16Image, ImageIoError> {
             from_decoded(path, width, height, img.into_raw())
         }
         other => Err(wrong_format(path, "16-bit greyscale PNG", &other)),
+    }
+}
+
+/// Reads an 8-bit greyscale PNG (a heatmap). Any other bit depth is an error, so a 16-bit
+/// image, whose values are not on the 0-255 scale, is refused rather than truncated.
+///
+/// # Errors
+/// Missing file, I/O error, corrupt PNG, or not 8-bit greyscale.
+pub fn read_gray8(path: &Path) -> Result<Gray8Image, ImageIoError> {
+    let decoded = decode_png(path)?;
+    match decoded {
+        DynamicImage::ImageLuma8(img) => {
+            let (width, height) = img.dimensions();
+            from_decoded(path, width, height, img.into_raw())
+        }
+        other => Err(wrong_format(path, "8-bit greyscale PNG", &other)),
     }
 }
 
@@ -556,6 +588,7 @@ mod tests {
         write_flo(&dir.join("f.flo"), &flow).unwrap();
         let heat = Gray8Image::from_fn(7, 5, |x, y| (x * 30 + y) as u8);
         write_gray8(&dir.join("h.png"), &heat).unwrap();
+        assert_eq!(read_gray8(&dir.join("h.png")).unwrap(), heat);
         assert_eq!(
             read_gray_widened(&dir.join("h.png")).unwrap(),
             heat.map(|&v| u16::from(v))
@@ -613,6 +646,9 @@ mod tests {
         write_gray16(&gray, &Gray16Image::from_fn(3, 2, |_, _| 1)).unwrap();
         let e = read_rgb8(&gray).unwrap_err();
         assert!(message(e).contains("found 16-bit greyscale"));
+
+        let e = read_gray8(&gray).unwrap_err();
+        assert!(message(e).contains("expected 8-bit greyscale PNG, found 16-bit greyscale"));
 
         let img = read_gray16(&gray).unwrap();
         let e = ImageIoError::expect_size(&gray, &img, 4, 2).unwrap_err();

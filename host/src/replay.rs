@@ -3,18 +3,70 @@
 //!
 //! Frame 0's mask is its static segmentation; every later frame's mask comes from the
 //! [`Tracker`] (flow from the previous frame, the new static segmentation, UpdateMask).
-//! A scene's masks are all computed before any is written; each PNG is written
-//! atomically, so a failure leaves no half-written file.
+//! A scene's masks are all computed before any is written, and each PNG is written
+//! atomically: a scene whose folder, input files or tracking fail writes no mask, and no
+//! failure leaves a half-written file.
+//!
+//! # Inputs from files
+//!
+//! The static segmentation and the flow can be read from files ([`InputDirs`]) instead of
+//! computed by the tracker's segmenter and flow estimator: MSMFormer/UCN labels or RAFT
+//! flow computed elsewhere, or a dataset's exact flow, which takes flow errors out of a
+//! diagnosis. For the scene folder named `S`:
+//!
+//! ```text
+//! FLOW/S/flow/NNNNNN.flo      flow from frame t = NNNNNN to t + 1 (Middlebury .flo, pixels)
+//! STATIC/S/label/NNNNNN.png   static labels of frame t: 8- or 16-bit grey, 0 = background
+//! STATIC/S/heat/NNNNNN.png    its 0-255 heatmap, 8-bit grey (optional, per frame)
+//! ```
+//!
+//! These are the names of a scene folder's own `flow/` and `label/` ([`crate::scene`]),
+//! so a dataset `riseg gen` wrote is a valid `FLOW` (its exact flow) and `STATIC` (its
+//! ground truth as the static segmentation). Rules:
+//! - Every file must have the size `S/scene_camera.json` gives, and every frame its files
+//!   (a heatmap excepted); other files are ignored.
+//! - Flow: a vector with a component of magnitude `1e9` or more (Middlebury's "unknown") or
+//!   a non-finite one becomes `[NaN, NaN]` ([`Flow::from_middlebury`]). riseg-core uses no
+//!   information from it: CreateFrames drops a frame whose tracked point has non-finite
+//!   flow (`riseg_core::frames`), and CorrectMask's carry step moves a label only to a
+//!   target inside the image, which a NaN target is not (`riseg_core::mask`). The core
+//!   treats a raw `1e10` the same way (its target lies off the image; a test pins this),
+//!   so NaN changes no mask; it makes "unknown" explicit to every other reader of the flow,
+//!   such as a drawing of it.
+//! - Labels: ids are renumbered `1..=n` in increasing order, as a [`Segmentation`] requires
+//!   (ids that already are `1..=n` are unchanged).
+//! - Heatmap: without a heat file, a frame's heatmap is [`HEAT_CERTAIN`] on labelled
+//!   pixels and `0` elsewhere: labels carry no uncertainty and none is invented (so
+//!   FindAction would find no uncertain region). `riseg run` itself uses no heatmap (the
+//!   pushes already happened); it is checked and kept for the [`Observation`]'s static
+//!   segmentation.
+//!
+//! Design: [`InputDirs::read_scene`] reads and checks a scene's files before the scene is
+//! tracked (a bad file costs no computation), and [`replay_scene`] hands each frame's
+//! inputs to [`Tracker::observe_given`]. The tracker has one code path whether a stage's
+//! output is computed or given; file-backed [`StaticSegmenter`] and [`FlowEstimator`]
+//! types would instead have to be told, out of band, which scene and frame each call
+//! serves, and every mix of given and computed stages would be another tracker type.
+//!
+//! [`Observation`]: crate::tracker::Observation
 
-use std::path::{Path, PathBuf};
+use std::{
+    ffi::OsStr,
+    path::{Path, PathBuf},
+};
 
 use crate::{
     camera::SceneReplay,
-    flow::FlowEstimator,
-    imageio::{Gray16Image, ImageIoError, ImageSizeError, write_gray16},
-    scene::{LABEL_DIR, Scene, SceneError, frame_file_name},
-    segment::StaticSegmenter,
-    tracker::{TrackError, Tracker},
+    flow::{Flow, FlowEstimator},
+    imageio::{
+        Gray16Image, ImageIoError, ImageProblem, ImageSizeError, read_flo, read_gray_widened,
+        read_gray8, read_sized, write_gray16,
+    },
+    scene::{
+        FLOW_DIR, HEAT_DIR, LABEL_DIR, Scene, SceneCamera, SceneError, frame_file, frame_file_name,
+    },
+    segment::{HEAT_CERTAIN, Segmentation, StaticSegmenter},
+    tracker::{GivenInputs, TrackError, Tracker},
 };
 
 /// Why a run failed; every variant names the scene folder or file.
@@ -24,6 +76,18 @@ pub enum RunError {
     /// The scene could not be read.
     #[error(transparent)]
     Scene(#[from] SceneError),
+    /// A flow or static segmentation file of a frame could not be used.
+    #[error("{scene}, frame {frame}: {what}: {source}")]
+    Input {
+        /// The scene folder.
+        scene: PathBuf,
+        /// The frame the file was for.
+        frame: usize,
+        /// Which input.
+        what: InputKind,
+        /// The file and its problem.
+        source: ImageIoError,
+    },
     /// Tracking failed on a frame.
     #[error("{scene}, frame {frame}: {source}")]
     Track {
@@ -55,49 +119,175 @@ pub enum RunError {
     },
 }
 
+/// A per-frame input read from a file ([`InputDirs`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum InputKind {
+    /// The flow from the previous frame to this one.
+    #[error("flow from the previous frame")]
+    Flow,
+    /// The static labels.
+    #[error("static labels")]
+    Labels,
+    /// The static heatmap.
+    #[error("static heatmap")]
+    Heatmap,
+}
+
+/// Where `riseg run` reads inputs instead of computing them (module docs); `None` computes.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct InputDirs {
+    /// Holds `<scene>/flow/NNNNNN.flo`, the flow from frame `t` to `t + 1`.
+    pub flow: Option<PathBuf>,
+    /// Holds `<scene>/label/NNNNNN.png` and optionally `<scene>/heat/NNNNNN.png`.
+    pub statics: Option<PathBuf>,
+}
+
+impl InputDirs {
+    /// Reads and checks the given inputs of every frame of `scene`, read from the folder
+    /// `dir` (module docs): one [`GivenInputs`] per frame, all empty when no folder is set.
+    ///
+    /// # Errors
+    /// [`RunError::Input`] for the first frame and input whose file is missing, corrupt, of
+    /// the wrong bit depth or not the size of `scene.camera`.
+    pub fn read_scene(&self, dir: &Path, scene: &Scene) -> Result<Vec<GivenInputs>, RunError> {
+        let name = scene_name(dir);
+        let failed = |frame, what, source| RunError::Input {
+            scene: dir.to_owned(),
+            frame,
+            what,
+            source,
+        };
+        (0..scene.frames())
+            .map(|t| {
+                let static_seg = self
+                    .statics
+                    .as_ref()
+                    .map(|statics| read_static(&statics.join(name), &scene.camera, t))
+                    .transpose()
+                    .map_err(|(what, e)| failed(t, what, e))?;
+                let flow = match (&self.flow, t.checked_sub(1)) {
+                    (Some(flows), Some(prev)) => {
+                        let path = frame_file(&flows.join(name), FLOW_DIR, prev, "flo");
+                        let image =
+                            read_sized(&path, scene.camera.width, scene.camera.height, read_flo)
+                                .map_err(|e| failed(t, InputKind::Flow, e))?;
+                        Some(Flow::from_middlebury(image))
+                    }
+                    _ => None,
+                };
+                Ok(GivenInputs { static_seg, flow })
+            })
+            .collect()
+    }
+}
+
+/// The name of the scene folder `dir` (the whole path if it has none, such as `..`).
+fn scene_name(dir: &Path) -> &OsStr {
+    dir.file_name().unwrap_or(dir.as_os_str())
+}
+
+/// Frame `t`'s labels (renumbered `1..=n`) and heatmap from the static folder `dir` of
+/// one scene (module docs); an error says which of the two files failed.
+fn read_static(
+    dir: &Path,
+    camera: &SceneCamera,
+    t: usize,
+) -> Result<Segmentation, (InputKind, ImageIoError)> {
+    let path = frame_file(dir, LABEL_DIR, t, "png");
+    let mut labels = read_sized(&path, camera.width, camera.height, read_gray_widened)
+        .map_err(|e| (InputKind::Labels, e))?
+        .into_vec();
+    renumber(&mut labels);
+    let path = frame_file(dir, HEAT_DIR, t, "png");
+    let heatmap = match read_sized(&path, camera.width, camera.height, read_gray8) {
+        Ok(heat) => heat.into_vec(),
+        Err(e) if matches!(e.problem, ImageProblem::Missing) => labels
+            .iter()
+            .map(|&l| if l == 0 { 0 } else { HEAT_CERTAIN })
+            .collect(),
+        Err(e) => return Err((InputKind::Heatmap, e)),
+    };
+    Ok(Segmentation {
+        width: camera.width as usize,
+        height: camera.height as usize,
+        labels,
+        heatmap,
+    })
+}
+
+/// Renumbers the non-zero ids of `labels` to `1..=n` in increasing order; `0` stays `0`.
+fn renumber(labels: &mut [u16]) {
+    let mut new_id = vec![0u16; usize::from(u16::MAX) + 1];
+    for &l in labels.iter().filter(|&&l| l != 0) {
+        new_id[usize::from(l)] = 1;
+    }
+    let mut next = 0u16;
+    for id in new_id.iter_mut().skip(1).filter(|id| **id != 0) {
+        next += 1;
+        *id = next;
+    }
+    for l in labels {
+        *l = new_id[usize::from(*l)];
+    }
+}
+
 /// Replays a recorded scene (the pushes already happened) through `tracker` from frame 0:
-/// the accumulated mask of every frame, in order. `on_frame(t)` is called after frame `t`.
+/// the accumulated mask of every frame, in order. Frame `t` uses `given[t]`
+/// ([`Tracker::observe_given`]); frames past the end of `given` compute everything.
+/// `on_frame(t)` is called after frame `t`.
 ///
 /// # Errors
 /// The frame that failed and the [`TrackError`].
 pub fn replay_scene<S: StaticSegmenter, F: FlowEstimator>(
     tracker: &mut Tracker<S, F>,
     scene: &Scene,
+    given: Vec<GivenInputs>,
     mut on_frame: impl FnMut(usize),
 ) -> Result<Vec<Vec<u16>>, (usize, TrackError)> {
     tracker.reset();
+    let mut given = given.into_iter();
     let mut masks = Vec::with_capacity(scene.frames());
     for t in 0..scene.frames() {
         let Some(frame) = SceneReplay::frame(scene, t) else {
             break;
         };
-        masks.push(tracker.observe(frame).map_err(|e| (t, e))?.mask);
+        let inputs = given.next().unwrap_or_default();
+        masks.push(
+            tracker
+                .observe_given(frame, inputs)
+                .map_err(|e| (t, e))?
+                .mask,
+        );
         on_frame(t);
     }
     Ok(masks)
 }
 
-/// Reads the scene folder `dir`, replays it, and writes its masks to
-/// `out/<dir's name>/label/NNNNNN.png`; returns how many were written. `on_frame(t)` is
-/// called as frame `t` is done.
+/// Reads the scene folder `dir` and the inputs `inputs` gives for it, replays it, and
+/// writes its masks to `out/<dir's name>/label/NNNNNN.png`; returns how many were written.
+/// `on_frame(t)` is called as frame `t` is done.
 ///
 /// # Errors
-/// [`RunError`] naming the folder or file that failed.
+/// [`RunError`] naming the folder or file that failed; no mask of the scene is written
+/// unless the failure is in writing them.
 pub fn run_scene<S: StaticSegmenter, F: FlowEstimator>(
     tracker: &mut Tracker<S, F>,
     dir: &Path,
+    inputs: &InputDirs,
     out: &Path,
     on_frame: impl FnMut(usize),
 ) -> Result<usize, RunError> {
     let scene = Scene::read(dir)?;
-    let masks =
-        replay_scene(tracker, &scene, on_frame).map_err(|(frame, source)| RunError::Track {
+    let given = inputs.read_scene(dir, &scene)?;
+    let masks = replay_scene(tracker, &scene, given, on_frame).map_err(|(frame, source)| {
+        RunError::Track {
             scene: dir.to_owned(),
             frame,
             source,
-        })?;
-    let name = dir.file_name().unwrap_or(dir.as_os_str());
-    let label_dir = out.join(name).join(LABEL_DIR);
+        }
+    })?;
+    let label_dir = out.join(scene_name(dir)).join(LABEL_DIR);
     std::fs::create_dir_all(&label_dir).map_err(|source| RunError::CreateDir {
         path: label_dir.clone(),
         source,

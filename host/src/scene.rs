@@ -58,6 +58,9 @@ pub const DEPTH_DIR: &str = "depth";
 pub const LABEL_DIR: &str = "label";
 /// Ground-truth forward flow folder.
 pub const FLOW_DIR: &str = "flow";
+/// Heatmap folder of a static-segmentation folder (`riseg run --static-dir`, beside its
+/// `label/`): 8-bit, 0-255, one per frame.
+pub const HEAT_DIR: &str = "heat";
 
 /// `scene_camera.json`: colour intrinsics (depth is aligned to colour) and the depth unit.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -250,14 +253,20 @@ pub fn frame_file_name(t: usize, ext: &str) -> String {
     format!("{t:06}.{ext}")
 }
 
+/// The file of frame `t` in the sub-folder `sub` of the scene folder `dir`:
+/// `dir/<sub>/NNNNNN.<ext>`.
+#[must_use]
+pub fn frame_file(dir: &Path, sub: &str, t: usize, ext: &str) -> PathBuf {
+    dir.join(sub).join(frame_file_name(t, ext))
+}
+
 /// The colour and depth files of frame `t` in the scene folder `dir`:
 /// `dir/rgb/NNNNNN.png` and `dir/depth/NNNNNN.png`.
 #[must_use]
 pub fn frame_paths(dir: &Path, t: usize) -> (PathBuf, PathBuf) {
-    let name = frame_file_name(t, "png");
     (
-        dir.join(RGB_DIR).join(&name),
-        dir.join(DEPTH_DIR).join(name),
+        frame_file(dir, RGB_DIR, t, "png"),
+        frame_file(dir, DEPTH_DIR, t, "png"),
     )
 }
 
@@ -332,9 +341,12 @@ fn read_sized<T>(
     camera: &SceneCamera,
     read: impl Fn(&Path) -> Result<Image<T>, ImageIoError>,
 ) -> Result<Image<T>, SceneError> {
-    let image = read(path)?;
-    ImageIoError::expect_size(path, &image, camera.width, camera.height)?;
-    Ok(image)
+    Ok(imageio::read_sized(
+        path,
+        camera.width,
+        camera.height,
+        read,
+    )?)
 }
 
 fn check_actions(path: &Path, actions: &[PushAction], pushes: usize) -> Result<(), SceneError> {

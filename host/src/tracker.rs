@@ -10,6 +10,15 @@
 //! (the segmenter, the flow and the core are deterministic for their seeds). Frames of one
 //! scene must share one size; a new scene starts with [`Tracker::reset`].
 //!
+//! [`Tracker::observe_given`] is the same step with the static segmentation, the flow or
+//! both supplied by the caller ([`GivenInputs`]: computed elsewhere, such as MSMFormer
+//! labels or RAFT flow read from files, or the simulator's exact flow); the tracker's own
+//! segmenter or flow estimator runs only for what is not given. It is the one code path:
+//! `observe` is `observe_given` with nothing given. A given segmentation or flow must be
+//! the frame's size; flow can only be given for a frame that has a previous one. Unknown
+//! flow is NaN (see [`crate::flow::is_known_flow`]): riseg-core neither tracks a body frame
+//! through it nor carries a label along it.
+//!
 //! The core's buffers are sized on the first frame and reused (no allocation per step in
 //! the core; the host allocates the flow field and the returned masks).
 
@@ -52,10 +61,34 @@ pub enum TrackError {
         /// Which comparison failed.
         what: &'static str,
     },
+    /// A given static segmentation or flow is not the frame's size.
+    #[error("the given {what} is {got:?} pixels but the frame is {expected:?}")]
+    GivenSize {
+        /// The frame's `(width, height)`.
+        expected: (usize, usize),
+        /// The given input's `(width, height)`.
+        got: (usize, usize),
+        /// "static segmentation" or "flow".
+        what: &'static str,
+    },
+    /// A flow was given for a scene's first frame, which has no previous frame.
+    #[error("a flow was given for the scene's first frame, which has no previous frame")]
+    FlowWithoutPrevious,
+}
+
+/// Inputs of one frame that the caller already has; the tracker computes what is `None`
+/// (module docs).
+#[derive(Debug, Clone, Default)]
+pub struct GivenInputs {
+    /// The frame's static segmentation, instead of the tracker's segmenter.
+    pub static_seg: Option<Segmentation>,
+    /// The flow from the previous frame's colour image to this one's, instead of the
+    /// tracker's estimator; NaN where unknown.
+    pub flow: Option<Flow>,
 }
 
 /// Milliseconds each stage of one frame took (zero for stages that did not run, such as
-/// flow on the first frame).
+/// flow on the first frame or a stage whose output was given).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StageTimes {
     /// Static segmentation.
@@ -187,6 +220,21 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
     /// # Errors
     /// [`TrackError`] naming the stage that failed, or the size that does not match.
     pub fn observe(&mut self, frame: CameraFrame) -> Result<Observation, TrackError> {
+        self.observe_given(frame, GivenInputs::default())
+    }
+
+    /// [`Tracker::observe`] with the static segmentation and/or the flow `given` (module
+    /// docs). On error the tracker keeps its previous frame and mask.
+    ///
+    /// # Errors
+    /// As [`Tracker::observe`]; [`TrackError::GivenSize`] if a given input is not the
+    /// frame's size, [`TrackError::FlowWithoutPrevious`] if a flow is given for a scene's
+    /// first frame.
+    pub fn observe_given(
+        &mut self,
+        frame: CameraFrame,
+        given: GivenInputs,
+    ) -> Result<Observation, TrackError> {
         let (w, h) = frame.size();
         let depth_size = (
             frame.depth_m.width() as usize,
@@ -208,11 +256,37 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
                 what: "against the previous frame",
             });
         }
+        let given_size = |what, got| {
+            if got == (w, h) {
+                Ok(())
+            } else {
+                Err(TrackError::GivenSize {
+                    expected: (w, h),
+                    got,
+                    what,
+                })
+            }
+        };
+        if let Some(seg) = &given.static_seg {
+            given_size("static segmentation", (seg.width, seg.height))?;
+        }
+        if let Some(flow) = &given.flow {
+            given_size("flow", (flow.width(), flow.height()))?;
+            if self.previous.is_none() {
+                return Err(TrackError::FlowWithoutPrevious);
+            }
+        }
         let mut times = StageTimes::default();
-        let clock = Instant::now();
-        let rgbd = RgbdFrame::new(w, h, frame.rgb.as_slice(), frame.depth_m.as_slice())?;
-        let static_seg = self.segmenter.segment(&rgbd, &frame.intrinsics)?;
-        times.segment_ms = ms_since(clock);
+        let static_seg = match given.static_seg {
+            Some(seg) => seg,
+            None => {
+                let clock = Instant::now();
+                let rgbd = RgbdFrame::new(w, h, frame.rgb.as_slice(), frame.depth_m.as_slice())?;
+                let seg = self.segmenter.segment(&rgbd, &frame.intrinsics)?;
+                times.segment_ms = ms_since(clock);
+                seg
+            }
+        };
 
         let Some(prev) = &self.previous else {
             let mask = static_seg.labels.clone();
@@ -228,12 +302,18 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
             });
         };
 
-        let clock = Instant::now();
-        let flow = self.flow.estimate(
-            RgbView::new(w, h, prev.frame.rgb.as_slice().as_flattened())?,
-            RgbView::new(w, h, frame.rgb.as_slice().as_flattened())?,
-        )?;
-        times.flow_ms = ms_since(clock);
+        let flow = match given.flow {
+            Some(flow) => flow,
+            None => {
+                let clock = Instant::now();
+                let flow = self.flow.estimate(
+                    RgbView::new(w, h, prev.frame.rgb.as_slice().as_flattened())?,
+                    RgbView::new(w, h, frame.rgb.as_slice().as_flattened())?,
+                )?;
+                times.flow_ms = ms_since(clock);
+                flow
+            }
+        };
 
         let (ws_w, ws_h, ws) = match self.workspace.take() {
             Some(sized) if (sized.0, sized.1) == (w, h) => sized,

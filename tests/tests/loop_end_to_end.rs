@@ -9,7 +9,7 @@ use riseg::{
     eval,
     flow::{DisFlow, FlowParams},
     generate::generate_scene,
-    replay::{replay_scene, run_scene},
+    replay::{InputDirs, replay_scene, run_scene},
     robot::{PushLimits, PushRefused, Robot as _},
     segment::{ClassicalSegmenter, SegmenterParams},
     sim::{SimRig, SimScene},
@@ -57,10 +57,17 @@ fn run_on_a_recorded_scene_equals_the_in_memory_replay_of_its_frames() {
     scene.write(&scene_dir).expect("write scene");
     let pred = dir.path().join("pred");
 
-    let written = run_scene(&mut tracker(), &scene_dir, &pred, |_| {}).expect("run");
+    let written = run_scene(
+        &mut tracker(),
+        &scene_dir,
+        &InputDirs::default(),
+        &pred,
+        |_| {},
+    )
+    .expect("run");
     assert_eq!(written, scene.frames());
     // The frames in memory are the PNG-rounded ones (u8 colour, millimetre depth).
-    let in_memory = replay_scene(&mut tracker(), scene, |_| {}).expect("replay");
+    let in_memory = replay_scene(&mut tracker(), scene, Vec::new(), |_| {}).expect("replay");
     for (t, mask) in in_memory.iter().enumerate() {
         let path = pred.join("scene_000/label").join(format!("{t:06}.png"));
         let on_disk = eval::read_label_png(&path).expect("mask png");

@@ -7,6 +7,9 @@
 //!   integer coordinates; `dx`, `dy` are in pixels, `dy` grows downwards.
 //! - [`Flow`] stores `[dx, dy]` per pixel, row-major, `width · height` entries: the layout
 //!   of a Middlebury `.flo` file body ([`flo`] reads and writes those files).
+//! - Unknown flow: a vector with a component of magnitude [`UNKNOWN_FLOW_MIN_PX`] or more
+//!   (the Middlebury convention, as `.flo` files store it) or a non-finite one (how flows
+//!   in memory mark it) carries no information ([`is_known_flow`]).
 //! - Estimators never panic on caller input: two images of different size, an empty image,
 //!   an image smaller than one patch, non-finite pixels or bad parameters are a
 //!   [`FlowError`].
@@ -31,6 +34,8 @@ mod search;
 mod variational;
 
 pub use dis::{DisFlow, FlowParams};
+
+use crate::imageio::FlowImage;
 
 /// Why a flow call failed.
 #[derive(Debug, thiserror::Error)]
@@ -93,6 +98,18 @@ pub enum FlowError {
     /// The dedicated thread pool could not be built.
     #[error("cannot build the flow thread pool")]
     ThreadPool(#[from] rayon::ThreadPoolBuildError),
+}
+
+/// A flow component of at least this magnitude, pixels, means "unknown" in `.flo` files
+/// (the Middlebury convention).
+pub const UNKNOWN_FLOW_MIN_PX: f32 = 1e9;
+
+/// Whether `v` is a known flow vector: both components finite and below
+/// [`UNKNOWN_FLOW_MIN_PX`] in magnitude.
+#[must_use]
+pub fn is_known_flow(v: [f32; 2]) -> bool {
+    // NaN compares false, so NaN is unknown too.
+    v[0].abs() < UNKNOWN_FLOW_MIN_PX && v[1].abs() < UNKNOWN_FLOW_MIN_PX
 }
 
 /// `width · height`, or `None` on overflow.
@@ -235,6 +252,23 @@ impl Flow {
         })
     }
 
+    /// The flow of a Middlebury `.flo` file ([`crate::imageio::read_flo`]) with every
+    /// unknown vector ([`is_known_flow`]) replaced by `[NaN, NaN]`, the in-memory mark.
+    #[must_use]
+    pub fn from_middlebury(image: FlowImage) -> Self {
+        let (width, height) = (image.width() as usize, image.height() as usize);
+        let data = image
+            .into_vec()
+            .into_iter()
+            .map(|v| if is_known_flow(v) { v } else { [f32::NAN; 2] })
+            .collect();
+        Self {
+            width,
+            height,
+            data,
+        }
+    }
+
     /// Width, pixels.
     #[must_use]
     pub const fn width(&self) -> usize {
@@ -270,9 +304,8 @@ impl Flow {
     }
 
     /// Mean endpoint error `|self - truth|` (pixels) over the pixels `mask` selects (all
-    /// pixels when `mask` is `None`) whose true flow is known: a `truth` component of
-    /// magnitude `1e9` or more means unknown (the Middlebury convention) and the pixel is
-    /// skipped. Summed in `f64` in row-major order.
+    /// pixels when `mask` is `None`) whose true flow is known ([`is_known_flow`]; unknown
+    /// pixels are skipped). Summed in `f64` in row-major order.
     ///
     /// # Errors
     /// [`FlowError::SizeMismatch`] if the fields differ in size, [`FlowError::BadLength`]
@@ -292,8 +325,7 @@ impl Flow {
         let mut sum = 0.0f64;
         let mut count = 0usize;
         for (i, (a, b)) in self.data.iter().zip(&truth.data).enumerate() {
-            let known = b[0].abs() < 1e9 && b[1].abs() < 1e9;
-            if known && mask.is_none_or(|m| m[i]) {
+            if is_known_flow(*b) && mask.is_none_or(|m| m[i]) {
                 sum += f64::from((a[0] - b[0]).hypot(a[1] - b[1]));
                 count += 1;
             }
@@ -365,6 +397,31 @@ mod tests {
         let want = [76.245, 149.685, 29.07, 255.0];
         for (a, b) in g.as_slice().iter().zip(want) {
             assert!((a - b).abs() < 1e-3, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn middlebury_unknown_becomes_nan() {
+        let big = UNKNOWN_FLOW_MIN_PX;
+        let image = FlowImage::from_vec(
+            5,
+            1,
+            vec![
+                [1.5, -2.0],
+                [big, 0.0],
+                [0.0, -big],
+                [f32::INFINITY, 0.0],
+                [0.0, 9e8],
+            ],
+        )
+        .unwrap();
+        let flow = Flow::from_middlebury(image);
+        assert_eq!((flow.width(), flow.height()), (5, 1));
+        let v = flow.as_slice();
+        assert_eq!(v[0], [1.5, -2.0]);
+        assert_eq!(v[4], [0.0, 9e8]);
+        for unknown in &v[1..4] {
+            assert!(unknown.iter().all(|c| c.is_nan()), "{unknown:?}");
         }
     }
 

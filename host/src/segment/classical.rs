@@ -191,6 +191,7 @@ impl ClassicalSegmenter {
                 labels: &labels,
                 segments,
                 inv_focal: 1.0 / (intrinsics.fx * intrinsics.fy).sqrt(),
+                table_normal: table.plane.normal.into(),
             },
             p,
             &mut s.heat,

@@ -29,8 +29,11 @@
 //!      3-D points give lengths `L₁ ≥ L₂`, `L = √(12 λ)` as for a uniform rectangle;
 //!      oversized when `L₁ > pack_max_len_m` or `L₁·L₂ > pack_max_area_m2`) is a pack of
 //!      look-alike objects the segmenter could not tell apart: it is cut into a grid of
-//!      `round(L / pack_cell_m)` cells per axis (at least two along `L₁`), and the
-//!      one-pixel cut lines are sources. The cuts need not fall on the true seams: they
+//!      `round(L / pack_cell_m)` cells along each axis longer than `pack_max_len_m` (at
+//!      least two along `L₁`), and the one-pixel cut lines are sources. A segment that
+//!      already holds sources of the rules above (at least half its width `L₂` in pixels)
+//!      is left as it is: those show where its objects meet. The cuts need not fall on
+//!      the true seams: they
 //!      give FindAction certain cells with uncertain bands between, so a push shears one
 //!      part of the pack along another instead of stopping the loop;
 //! 2. **Background** `B`: unlabelled pixels that are not contact-gap pixels.
@@ -86,6 +89,8 @@ pub(super) struct HeatInput<'a> {
     pub(super) segments: usize,
     /// `1 / sqrt(fx·fy)`: metres per pixel per metre of depth.
     pub(super) inv_focal: f32,
+    /// Unit normal of the table plane, camera frame.
+    pub(super) table_normal: P3,
 }
 
 /// Writes the heat of segment and contact-gap pixels into `heat` (module docs); other
@@ -228,13 +233,16 @@ pub(super) fn heatmap(
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Moments {
     count: f64,
+    /// Source pixels (rules 1a-1c) in the segment.
+    sources: u32,
+    /// Sum of the points' depths, metres.
+    depth_sum_m: f64,
     sum: [f64; 3],
     outer: [[f64; 3]; 3],
 }
 
 impl Moments {
-    fn add(&mut self, p: P3) {
-        let p = p.map(f64::from);
+    fn add(&mut self, p: [f64; 3]) {
         self.count += 1.0;
         for (a, pa) in p.iter().enumerate() {
             self.sum[a] += pa;
@@ -278,10 +286,24 @@ fn pack_cuts(
 ) {
     moments.clear();
     moments.resize(inp.segments + 1, Moments::default());
-    for (&l, &p) in inp.labels.iter().zip(inp.pts) {
-        if l != 0 && p[2] > 0.0 {
-            if let Some(m) = moments.get_mut(usize::from(l)) {
-                m.add(p);
+    // Points are flattened onto the table plane, so an object's sides fold onto its
+    // footprint's outline and the axes measure the footprint.
+    let n = inp.table_normal.map(f64::from);
+    let flatten = |p: P3| {
+        let p = p.map(f64::from);
+        let h = p[0] * n[0] + p[1] * n[1] + p[2] * n[2];
+        [p[0] - h * n[0], p[1] - h * n[1], p[2] - h * n[2]]
+    };
+    for ((&l, &p), &mk) in inp.labels.iter().zip(inp.pts).zip(mark.iter()) {
+        if l != 0
+            && let Some(m) = moments.get_mut(usize::from(l))
+        {
+            if mk & SOURCE != 0 {
+                m.sources += 1;
+            }
+            if p[2] > 0.0 {
+                m.add(flatten(p));
+                m.depth_sum_m += f64::from(p[2]);
             }
         }
     }
@@ -292,22 +314,33 @@ fn pack_cuts(
         let [(_, long_m), (_, short_m)] = axes;
         let oversized = long_m > f64::from(params.pack_max_len_m)
             || long_m * short_m > f64::from(params.pack_max_area_m2);
-        if !oversized {
+        // Sources already inside the segment (a contact, crease or step as long as half
+        // its width) divide it where the objects really meet: no guessed cuts then.
+        let m_per_px = m.depth_sum_m / m.count * f64::from(inp.inv_focal);
+        let seam_px = 0.5 * short_m / m_per_px;
+        if !oversized || f64::from(m.sources) >= seam_px {
             continue;
         }
         let cell_m = f64::from(params.pack_cell_m);
-        // Cells per axis; the long axis is cut at least once.
-        let cells = [
-            ((long_m / cell_m).round() as usize).clamp(2, 16),
-            ((short_m / cell_m).round() as usize).clamp(1, 16),
-        ];
+        // Cells per axis: an axis longer than one object is cut into object-sized cells;
+        // the long axis is cut at least once.
+        let max_len_m = f64::from(params.pack_max_len_m);
+        let cells_along = |len_m: f64| {
+            if len_m > max_len_m {
+                ((len_m / cell_m).round() as usize).clamp(1, 16)
+            } else {
+                1
+            }
+        };
+        let cells = [cells_along(long_m).max(2), cells_along(short_m)];
         for (i, (&l, &p)) in inp.labels.iter().zip(inp.pts).enumerate() {
             if usize::from(l) != label || p[2] <= 0.0 {
                 continue;
             }
             // A cut is one pixel wide: within half a pixel of a cut position.
             let half_px_m = 0.5 * f64::from(p[2] * inp.inv_focal);
-            let d = [0, 1, 2].map(|a| f64::from(p[a]) - centre[a]);
+            let q = flatten(p);
+            let d = [0, 1, 2].map(|a| q[a] - centre[a]);
             let on_cut = axes.iter().zip(cells).any(|((axis, len_m), n)| {
                 let along = d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2];
                 // Position in cells from the start of the axis.
@@ -447,6 +480,7 @@ mod tests {
             labels: &labels,
             segments: 1,
             inv_focal: 1.0 / 600.0,
+            table_normal: [0.0, 0.0, -1.0],
         };
         let mut heat = vec![0u8; w * h];
         heatmap(
@@ -516,6 +550,7 @@ mod tests {
                 labels,
                 segments: 1,
                 inv_focal: 1.0 / 600.0,
+                table_normal: [0.0, 0.0, -1.0],
             },
             &SegmenterParams::default(),
             &mut HeatScratch::default(),

@@ -132,11 +132,14 @@ pub struct SegmenterParams {
     /// Longest chord across a neck, metres (the narrowest object of interest is about
     /// 3 cm wide).
     pub neck_chord_max_m: f32,
-    /// A segment whose principal length exceeds this is a pack of several objects (heatmap
-    /// packs), metres. 10 cm: the largest single object of interest is about 7 cm.
+    /// A segment whose footprint's principal length exceeds this is a pack of several
+    /// objects (heatmap packs), metres. 11.5 cm: objects of interest are up to about 7 cm
+    /// (10 cm boxes, whose visible sides add about a centimetre, stay whole), so any row
+    /// of three or more is cut.
     pub pack_max_len_m: f32,
-    /// ... or whose principal area (length times width) exceeds this, square metres:
-    /// 55 cm², above a 7 cm square box, below four 4 cm boxes packed 2x2.
+    /// ... or whose footprint area (principal length times width) exceeds this, square
+    /// metres: 85 cm², above a 10 x 7 cm box with its sides, below four 5 cm boxes packed
+    /// 2x2 (a 2x2 pack of 4 cm boxes is as large as one big box and is not cut).
     pub pack_max_area_m2: f32,
     /// Nominal size of one object of a pack: the cut grid's cell, metres.
     pub pack_cell_m: f32,
@@ -175,9 +178,9 @@ impl Default for SegmenterParams {
             neck_radius_m: 0.01,
             neck_notch_share: 0.65,
             neck_chord_max_m: 0.03,
-            pack_max_len_m: 0.10,
-            pack_max_area_m2: 0.0055,
-            pack_cell_m: 0.05,
+            pack_max_len_m: 0.115,
+            pack_max_area_m2: 0.0085,
+            pack_cell_m: 0.06,
         }
     }
 }

@@ -25,7 +25,7 @@ use riseg_core::{
 use crate::{
     camera::CameraFrame,
     flow::{Flow, FlowError, FlowEstimator, RgbView},
-    segment::{RgbdFrame, SegmentError, Segmentation, StaticSegmenter},
+    segment::{SegmentError, Segmentation, StaticSegmenter},
     workspace::WorkspaceBuf,
 };
 
@@ -210,8 +210,7 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
         }
         let mut times = StageTimes::default();
         let clock = Instant::now();
-        let rgbd = RgbdFrame::new(w, h, frame.rgb.as_slice(), frame.depth_m.as_slice())?;
-        let static_seg = self.segmenter.segment(&rgbd, &frame.intrinsics)?;
+        let static_seg = self.segmenter.segment(&frame.rgbd()?, &frame.intrinsics)?;
         times.segment_ms = ms_since(clock);
 
         let Some(prev) = &self.previous else {

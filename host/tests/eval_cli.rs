@@ -303,14 +303,14 @@ fn generated_scene() -> &'static Path {
 /// scene folder.
 fn copy_of_generated(root: &Path) -> (PathBuf, PathBuf) {
     fn copy_dir(from: &Path, to: &Path) {
-        std::fs::create_dir_all(to).unwrap();
-        for entry in std::fs::read_dir(from).unwrap() {
-            let path = entry.unwrap().path();
-            let dest = to.join(path.file_name().unwrap());
+        std::fs::create_dir_all(to).expect("creating a folder of the copy");
+        for entry in std::fs::read_dir(from).expect("listing the generated dataset") {
+            let path = entry.expect("a folder entry").path();
+            let dest = to.join(path.file_name().expect("an entry has a name"));
             if path.is_dir() {
                 copy_dir(&path, &dest);
             } else {
-                std::fs::copy(&path, &dest).unwrap();
+                std::fs::copy(&path, &dest).expect("copying a file");
             }
         }
     }
@@ -321,10 +321,10 @@ fn copy_of_generated(root: &Path) -> (PathBuf, PathBuf) {
 
 /// The labels of the scene's objects (every frame).
 fn object_labels(scene_dir: &Path) -> BTreeSet<u16> {
-    let scene = Scene::read(scene_dir).unwrap();
+    let scene = Scene::read(scene_dir).expect("the generated scene reads");
     scene
         .labels
-        .unwrap()
+        .expect("the generated scene has labels")
         .iter()
         .flat_map(|l| l.as_slice().iter().copied())
         .filter(|&l| l != 0)
@@ -355,7 +355,7 @@ fn write_poses(
         })
         .collect();
     let json = serde_json::json!({ "frames": frames });
-    std::fs::write(scene_dir.join(POSES_FILE), json.to_string()).unwrap();
+    std::fs::write(scene_dir.join(POSES_FILE), json.to_string()).expect("writing poses.json");
 }
 
 #[test]

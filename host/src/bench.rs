@@ -6,9 +6,13 @@
 //! seed when no placement fits, as `riseg gen` does). On each scene one episode of
 //! Algorithm 1 runs ([`crate::episode::run_episode`]) with the built-in segmenter and flow: the loop picks
 //! its own pushes, at most [`Config::max_pushes`]. Every captured frame `t` is scored
-//! against the simulator's ground truth twice: the static segmentation of that frame (the
-//! `static` rows) and the accumulated RISeg mask (the `riseg` rows; at `t = 0` both are the
-//! static segmentation). Row `t` averages the scenes that reached frame `t`. Timing is the
+//! against the simulator's ground truth three times: the static segmentation of that frame
+//! (the `static` rows), the accumulated RISeg mask (the `riseg` rows; at `t = 0` both are
+//! the static segmentation), and the motion ceiling of the episode's frames `0..=t`
+//! ([`crate::ceiling`], [`CeilingParams::DEFAULT`]; the `ceiling` rows), computed from the
+//! same static segmentations and the simulator's true object poses. Row `t` averages the
+//! scenes that reached frame `t`; RISeg's share of the ceiling at push `t` is the ratio of
+//! the two rows' objects-found percentages. Timing is the
 //! median over steps of each stage (segmentation over all frames, the other stages over
 //! the frames after a push), with the flow on one thread.
 //!
@@ -22,8 +26,9 @@ use riseg_core::Config;
 use serde::{Deserialize, Serialize};
 
 use crate::{
+    ceiling::{CeilingFrame, CeilingParams, MotionCeiling},
     episode::{EpisodeError, EpisodeFrame, Stop},
-    eval::{EvalReport, PushReport},
+    eval::{EvalReport, PushReport, write_ceiling_shares},
     flow::{DisFlow, FlowError, FlowParams},
     generate::{MAX_ATTEMPTS, scene_seed},
     metrics::{ImageMetrics, MetricsError, PushAverages, image_metrics},
@@ -115,6 +120,8 @@ pub struct SceneResult {
     pub static_metrics: Vec<ImageMetrics>,
     /// RISeg mask metrics per frame.
     pub riseg_metrics: Vec<ImageMetrics>,
+    /// Motion ceiling metrics per frame.
+    pub ceiling_metrics: Vec<ImageMetrics>,
     /// Stage times per frame.
     pub times: Vec<StageTimes>,
     /// Why the episode ended.
@@ -125,8 +132,8 @@ pub struct SceneResult {
 pub type Timing = BTreeMap<String, f64>;
 
 /// The benchmark's result; its JSON form is `{"static": [ROW, ...], "riseg": [ROW, ...],
-/// "timing_ms": {"segment": .., "flow": .., "frames": .., "twists": .., "grouping": ..,
-/// "mask": ..}}` with ROW as in `riseg eval --json`.
+/// "ceiling": [ROW, ...], "timing_ms": {"segment": .., "flow": .., "frames": .., "twists":
+/// .., "grouping": .., "mask": ..}}` with ROW as in `riseg eval --json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BenchReport {
     /// The static segmenter alone, per push.
@@ -135,6 +142,9 @@ pub struct BenchReport {
     /// RISeg's accumulated mask, per push.
     #[serde(rename = "riseg")]
     pub riseg_rows: Vec<PushReport>,
+    /// The motion ceiling, per push.
+    #[serde(rename = "ceiling")]
+    pub ceiling_rows: Vec<PushReport>,
     /// Median time per step of each stage, milliseconds.
     pub timing_ms: Timing,
 }
@@ -154,12 +164,18 @@ pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchEr
     )?;
     let mut static_metrics = Vec::new();
     let mut riseg_metrics = Vec::new();
+    let mut ceiling_metrics = Vec::new();
+    let mut ceiling = MotionCeiling::new(CeilingParams::DEFAULT);
     let mut times = Vec::new();
     let summary = rig
         .run(&mut tracker, |f: &EpisodeFrame<'_>| {
             let (s, r) = score_frame(f).map_err(|e| format!("scoring frame {}: {e}", f.t))?;
             static_metrics.push(s);
             riseg_metrics.push(r);
+            ceiling_metrics.push(
+                score_ceiling(&mut ceiling, f)
+                    .map_err(|e| format!("motion ceiling of frame {}: {e}", f.t))?,
+            );
             times.push(f.observation.times);
             Ok(())
         })
@@ -169,6 +185,7 @@ pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchEr
         sim_seed,
         static_metrics,
         riseg_metrics,
+        ceiling_metrics,
         times,
         stop: summary.stop,
     })
@@ -188,6 +205,32 @@ pub fn score_frame(f: &EpisodeFrame<'_>) -> Result<(ImageMetrics, ImageMetrics),
         image_metrics(truth, &obs.static_seg.labels, w, h)?,
         image_metrics(truth, &obs.mask, w, h)?,
     ))
+}
+
+/// The motion ceiling's mask of the frame (fed to `ceiling`, which holds the episode's
+/// earlier frames) and its metrics.
+///
+/// # Errors
+/// When the frame has no ground-truth labels or poses, or the ceiling or the metrics
+/// refuse it.
+fn score_ceiling(
+    ceiling: &mut MotionCeiling,
+    f: &EpisodeFrame<'_>,
+) -> Result<ImageMetrics, String> {
+    let (width, height) = f.frame.size();
+    let (Some(truth), Some(poses)) = (&f.frame.truth, &f.frame.truth_poses) else {
+        return Err("the camera gave no ground-truth labels or no object poses".into());
+    };
+    let mask = ceiling
+        .next_frame(&CeilingFrame {
+            width,
+            height,
+            truth: truth.as_slice(),
+            static_labels: &f.observation.static_seg.labels,
+            poses,
+        })
+        .map_err(|e| e.to_string())?;
+    image_metrics(truth.as_slice(), &mask, width, height).map_err(|e| e.to_string())
 }
 
 /// The first attempt seed from `seed` (as `riseg gen` derives them) whose objects the
@@ -234,11 +277,18 @@ pub fn run_bench(
 pub fn report(results: &[SceneResult]) -> BenchReport {
     let mut static_avg = PushAverages::new();
     let mut riseg_avg = PushAverages::new();
+    let mut ceiling_avg = PushAverages::new();
     let mut stage: [Vec<f64>; 6] = Default::default();
     for r in results {
-        for (t, (s, m)) in r.static_metrics.iter().zip(&r.riseg_metrics).enumerate() {
+        let frames = r
+            .static_metrics
+            .iter()
+            .zip(&r.riseg_metrics)
+            .zip(&r.ceiling_metrics);
+        for (t, ((s, m), c)) in frames.enumerate() {
             static_avg.add(t as u32, s);
             riseg_avg.add(t as u32, m);
+            ceiling_avg.add(t as u32, c);
         }
         for (t, times) in r.times.iter().enumerate() {
             for (k, (all, v)) in stage.iter_mut().zip(times.values()).enumerate() {
@@ -257,6 +307,7 @@ pub fn report(results: &[SceneResult]) -> BenchReport {
     BenchReport {
         static_rows: EvalReport::from_rows(&static_avg.rows()).pushes,
         riseg_rows: EvalReport::from_rows(&riseg_avg.rows()).pushes,
+        ceiling_rows: EvalReport::from_rows(&ceiling_avg.rows()).pushes,
         timing_ms,
     }
 }
@@ -275,32 +326,36 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 impl core::fmt::Display for BenchReport {
-    /// Table 1: static and RISeg rows side by side per push, then the stage medians.
+    /// Table 1: static, RISeg and motion ceiling rows side by side per push, RISeg's share
+    /// of the ceiling, then the stage medians.
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         writeln!(
             f,
-            "{:>4} {:>6} | {:^26} | {:^26}",
-            "", "", "static segmenter", "RISeg"
+            "{:>4} {:>6} | {:^26} | {:^26} | {:^26}",
+            "", "", "static segmenter", "RISeg", "motion ceiling"
         )?;
-        writeln!(
-            f,
-            "{:>4} {:>6} | {:>8}{:>9}{:>9} | {:>8}{:>9}{:>9}",
-            "push", "scenes", "overlap", "boundary", "obj>75", "overlap", "boundary", "obj>75"
-        )?;
-        for (s, r) in self.static_rows.iter().zip(&self.riseg_rows) {
-            writeln!(
-                f,
-                "{:>4} {:>6} | {:>8.1}{:>9.1}{:>9.1} | {:>8.1}{:>9.1}{:>9.1}",
-                s.push,
-                s.images,
-                s.overlap.f,
-                s.boundary.f,
-                s.objects_f75_pct,
-                r.overlap.f,
-                r.boundary.f,
-                r.objects_f75_pct
-            )?;
+        write!(f, "{:>4} {:>6}", "push", "scenes")?;
+        for _ in 0..3 {
+            write!(f, " | {:>8}{:>9}{:>9}", "overlap", "boundary", "obj>75")?;
         }
+        writeln!(f)?;
+        let rows = self
+            .static_rows
+            .iter()
+            .zip(&self.riseg_rows)
+            .zip(&self.ceiling_rows);
+        for ((s, r), c) in rows {
+            write!(f, "{:>4} {:>6}", s.push, s.images)?;
+            for row in [s, r, c] {
+                write!(
+                    f,
+                    " | {:>8.1}{:>9.1}{:>9.1}",
+                    row.overlap.f, row.boundary.f, row.objects_f75_pct
+                )?;
+            }
+            writeln!(f)?;
+        }
+        write_ceiling_shares(f, "RISeg", &self.riseg_rows, &self.ceiling_rows)?;
         write!(f, "median ms per step:")?;
         for name in StageTimes::NAMES {
             if let Some(ms) = self.timing_ms.get(name) {

@@ -6,6 +6,8 @@ use riseg_core::Intrinsics;
 use crate::{
     imageio::{DepthImage, Gray16Image, RgbImage},
     scene::Scene,
+    segment::{RgbdFrame, SegmentError},
+    sim::ObjectPose,
 };
 
 /// One RGB-D frame, owned: colour, depth in metres (`<= 0` or not finite: no reading) and
@@ -21,6 +23,10 @@ pub struct CameraFrame {
     /// Ground-truth instance labels (0 = background), when the source knows them: the
     /// simulator, or a recording with a `label/` folder. Only for scoring.
     pub truth: Option<Gray16Image>,
+    /// Every object's true pose when the frame was taken (world frame, labels as in
+    /// `truth`), when the source knows them: the simulator. Only for scoring (the motion
+    /// ceiling, [`crate::ceiling`]).
+    pub truth_poses: Option<Vec<ObjectPose>>,
 }
 
 impl CameraFrame {
@@ -28,6 +34,15 @@ impl CameraFrame {
     #[must_use]
     pub fn size(&self) -> (usize, usize) {
         (self.rgb.width() as usize, self.rgb.height() as usize)
+    }
+
+    /// The colour and depth images as a static segmenter's input.
+    ///
+    /// # Errors
+    /// [`SegmentError`] when the colour and depth images differ in size (or are empty).
+    pub fn rgbd(&self) -> Result<RgbdFrame<'_>, SegmentError> {
+        let (w, h) = self.size();
+        RgbdFrame::new(w, h, self.rgb.as_slice(), self.depth_m.as_slice())
     }
 }
 
@@ -70,6 +85,7 @@ impl<'a> SceneReplay<'a> {
             depth_m,
             intrinsics: scene.camera.intrinsics(),
             truth: scene.labels.as_ref().and_then(|l| l.get(t)).cloned(),
+            truth_poses: None,
         })
     }
 }

@@ -21,6 +21,17 @@
 //! [`evaluate`] reads and scores each pair and averages per push into an [`EvalReport`],
 //! whose numbers are percentages; [`EvalReport`] prints as a table (`Display`) and
 //! writes JSON atomically ([`EvalReport::write_json`]).
+//!
+//! # Motion ceiling
+//!
+//! When every scene folder of `DATASET` has a `poses.json` (the objects' true poses,
+//! format in [`crate::ceiling`]; [`dataset_poses`] reads them), [`evaluate_ceiling`]
+//! scores the motion ceiling of every ground-truth frame the same way: each scene is read
+//! as a scene folder ([`Scene::read`]: colour, depth and labels are needed), every frame
+//! is segmented by the given static segmenter, and [`MotionCeiling`] turns the labels,
+//! static segmentations and poses of frames `0..=t` into the ceiling mask of frame `t`.
+//! The rows go to [`EvalReport::ceiling`]; the table then also prints the prediction's
+//! share of the ceiling per push (the ratio of the objects-found percentages).
 
 use core::fmt;
 use std::fs;
@@ -29,7 +40,14 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::metrics::{self, ImageMetrics, MetricsError, MetricsRow, Prf, PushAverages};
+use crate::{
+    camera::SceneReplay,
+    ceiling::{CeilingError, CeilingFrame, CeilingParams, MotionCeiling, POSES_FILE, read_poses},
+    metrics::{self, ImageMetrics, MetricsError, MetricsRow, Prf, PushAverages},
+    scene::{LABEL_DIR, Scene, SceneError, frame_file_name, list_scenes},
+    segment::{SegmentError, StaticSegmenter},
+    sim::ObjectPose,
+};
 
 /// Why an evaluation failed. Every variant names the file or folder at fault; the
 /// underlying error, if any, is the [`std::error::Error::source`] (print the chain, e.g.
@@ -105,10 +123,26 @@ pub enum EvalError {
     /// The metrics refused the pair (too many objects).
     #[error("{}: cannot score this prediction", path.display())]
     Metrics {
-        /// The prediction file.
+        /// The prediction file (for the motion ceiling, the ground-truth label map).
         path: PathBuf,
         /// Why.
         source: MetricsError,
+    },
+    /// A scene folder could not be read for the motion ceiling.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// A `poses.json` could not be read, or does not fit its scene.
+    #[error(transparent)]
+    Poses(#[from] CeilingError),
+    /// The static segmenter failed on a frame of a scene.
+    #[error("{}: static segmentation of frame {frame}", scene.display())]
+    Segment {
+        /// The scene folder.
+        scene: PathBuf,
+        /// The frame.
+        frame: usize,
+        /// Why.
+        source: SegmentError,
     },
 }
 
@@ -331,20 +365,25 @@ impl From<&MetricsRow> for PushReport {
 }
 
 /// The result of `riseg eval`: one [`PushReport`] per push index, in push order. Its
-/// JSON form is `{"pushes": [{"push": 0, "images": 23, "overlap": {"p": .., "r": ..,
-/// "f": ..}, "boundary": {..}, "objects_f75_pct": ..}, ...]}`.
+/// JSON form is `{"pushes": [ROW, ...]}`, ROW = `{"push": 0, "images": 23, "overlap":
+/// {"p": .., "r": .., "f": ..}, "boundary": {..}, "objects_f75_pct": ..}`, with
+/// `"ceiling": [ROW, ...]` beside `"pushes"` when the motion ceiling was scored.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EvalReport {
     /// One entry per push index.
     pub pushes: Vec<PushReport>,
+    /// The motion ceiling of the same frames (module docs), when it was scored.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ceiling: Option<Vec<PushReport>>,
 }
 
 impl EvalReport {
-    /// The report of averaged rows, converted to percent.
+    /// The report of averaged rows, converted to percent, without a ceiling.
     #[must_use]
     pub fn from_rows(rows: &[MetricsRow]) -> Self {
         Self {
             pushes: rows.iter().map(PushReport::from).collect(),
+            ceiling: None,
         }
     }
 
@@ -388,29 +427,184 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> io::Result<()> {
 }
 
 impl fmt::Display for EvalReport {
-    /// The table `riseg eval` prints: one line per push index, numbers in percent.
+    /// The table `riseg eval` prints: one line per push index, numbers in percent; then,
+    /// when scored, the motion ceiling's table and the prediction's share of it.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        writeln!(f, "{:13}|{:^23}|{:^23}|", "", "overlap (%)", "boundary (%)")?;
-        writeln!(
-            f,
-            "{:>4} {:>7} |{:>7}{:>7}{:>7}  |{:>7}{:>7}{:>7}  | objects F>75 (%)",
-            "push", "images", "P", "R", "F", "P", "R", "F"
-        )?;
-        for row in &self.pushes {
+        write_table(f, &self.pushes)?;
+        if let Some(ceiling) = &self.ceiling {
             writeln!(
                 f,
-                "{:>4} {:>7} |{:>7.1}{:>7.1}{:>7.1}  |{:>7.1}{:>7.1}{:>7.1}  |{:>10.1}",
-                row.push,
-                row.images,
-                row.overlap.p,
-                row.overlap.r,
-                row.overlap.f,
-                row.boundary.p,
-                row.boundary.r,
-                row.boundary.f,
-                row.objects_f75_pct
+                "\nmotion ceiling (ground truth, objects merged where no static segmentation \
+                 or push could separate them):"
             )?;
+            write_table(f, ceiling)?;
+            write_ceiling_shares(f, "prediction", &self.pushes, ceiling)?;
         }
         Ok(())
     }
+}
+
+/// One line per push index: overlap and boundary P, R, F and objects found, in percent.
+fn write_table(f: &mut fmt::Formatter<'_>, rows: &[PushReport]) -> fmt::Result {
+    writeln!(f, "{:13}|{:^23}|{:^23}|", "", "overlap (%)", "boundary (%)")?;
+    writeln!(
+        f,
+        "{:>4} {:>7} |{:>7}{:>7}{:>7}  |{:>7}{:>7}{:>7}  | objects F>75 (%)",
+        "push", "images", "P", "R", "F", "P", "R", "F"
+    )?;
+    for row in rows {
+        writeln!(
+            f,
+            "{:>4} {:>7} |{:>7.1}{:>7.1}{:>7.1}  |{:>7.1}{:>7.1}{:>7.1}  |{:>10.1}",
+            row.push,
+            row.images,
+            row.overlap.p,
+            row.overlap.r,
+            row.overlap.f,
+            row.boundary.p,
+            row.boundary.r,
+            row.boundary.f,
+            row.objects_f75_pct
+        )?;
+    }
+    Ok(())
+}
+
+/// One line per push index present in both `rows` and `ceiling`: `"<name> / ceiling,
+/// objects F>75 at push t: x.xx"`, the ratio of the two rows' objects-found percentages
+/// (`n/a` when the ceiling finds none).
+///
+/// # Errors
+/// Only the formatter's.
+pub fn write_ceiling_shares(
+    f: &mut fmt::Formatter<'_>,
+    name: &str,
+    rows: &[PushReport],
+    ceiling: &[PushReport],
+) -> fmt::Result {
+    for row in rows {
+        let Some(top) = ceiling.iter().find(|c| c.push == row.push) else {
+            continue;
+        };
+        write!(f, "{name} / ceiling, objects F>75 at push {}: ", row.push)?;
+        if top.objects_f75_pct > 0.0 {
+            writeln!(f, "{:.2}", row.objects_f75_pct / top.objects_f75_pct)?;
+        } else {
+            writeln!(f, "n/a (the ceiling finds no object)")?;
+        }
+    }
+    Ok(())
+}
+
+/// One scene folder's true object poses.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScenePoses {
+    /// The scene folder.
+    pub scene: PathBuf,
+    /// `frames[t]`: every object's pose after `t` pushes, world frame.
+    pub frames: Vec<Vec<ObjectPose>>,
+}
+
+/// Whether a dataset can have a motion ceiling.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DatasetPoses {
+    /// Every scene folder has a `poses.json`: each scene's poses, in name order.
+    All(Vec<ScenePoses>),
+    /// The first scene folder (in name order) without a `poses.json`.
+    Missing(PathBuf),
+}
+
+/// Reads the `poses.json` of every `scene_*` folder of `gt_root`, stopping at the first
+/// scene that has none.
+///
+/// # Errors
+/// [`EvalError::Scene`] if `gt_root` cannot be listed, [`EvalError::NoScenes`] if it has
+/// no scene folder, [`EvalError::Poses`] naming a `poses.json` that cannot be read.
+pub fn dataset_poses(gt_root: &Path) -> Result<DatasetPoses, EvalError> {
+    let scenes = list_scenes(gt_root)?;
+    if scenes.is_empty() {
+        return Err(EvalError::NoScenes {
+            root: gt_root.to_owned(),
+        });
+    }
+    let mut all = Vec::with_capacity(scenes.len());
+    for scene in scenes {
+        match read_poses(&scene.join(POSES_FILE))? {
+            Some(frames) => all.push(ScenePoses { scene, frames }),
+            None => return Ok(DatasetPoses::Missing(scene)),
+        }
+    }
+    Ok(DatasetPoses::All(all))
+}
+
+/// Scores the motion ceiling of every frame of `scenes` (module docs), with static
+/// segmentations from `segmenter`; calls `on_frame` after each frame. The rows are in
+/// percent, one per push index.
+///
+/// # Errors
+/// [`EvalError::Scene`] if a scene folder is unreadable; [`EvalError::NoGroundTruth`] if
+/// it has no labels; [`EvalError::Poses`] naming a `poses.json` whose frame count differs
+/// from the scene's or that lacks a pose for an object; [`EvalError::Segment`] if the
+/// segmenter fails; [`EvalError::Metrics`] naming the label map the metrics refuse.
+pub fn evaluate_ceiling(
+    scenes: &[ScenePoses],
+    segmenter: &mut impl StaticSegmenter,
+    params: &CeilingParams,
+    mut on_frame: impl FnMut(),
+) -> Result<Vec<PushReport>, EvalError> {
+    let mut averages = PushAverages::new();
+    for ScenePoses { scene: dir, frames } in scenes {
+        let poses_path = dir.join(POSES_FILE);
+        let poses_invalid = |reason: String| CeilingError::PosesInvalid {
+            path: poses_path.clone(),
+            reason,
+        };
+        let scene = Scene::read(dir)?;
+        if frames.len() != scene.frames() {
+            return Err(poses_invalid(format!(
+                "{} frames of poses, but the scene has {} frames",
+                frames.len(),
+                scene.frames()
+            ))
+            .into());
+        }
+        let mut ceiling = MotionCeiling::new(*params);
+        for (t, poses) in frames.iter().enumerate() {
+            let (Some(frame), Some(truth)) = (
+                SceneReplay::frame(&scene, t),
+                scene.labels.as_ref().and_then(|l| l.get(t)),
+            ) else {
+                return Err(EvalError::NoGroundTruth { scene: dir.clone() });
+            };
+            let static_seg = frame
+                .rgbd()
+                .and_then(|rgbd| segmenter.segment(&rgbd, &frame.intrinsics))
+                .map_err(|source| EvalError::Segment {
+                    scene: dir.clone(),
+                    frame: t,
+                    source,
+                })?;
+            let (width, height) = frame.size();
+            let mask = ceiling
+                .next_frame(&CeilingFrame {
+                    width,
+                    height,
+                    truth: truth.as_slice(),
+                    static_labels: &static_seg.labels,
+                    poses,
+                })
+                // `Scene::read` checked every image's size, so what the ceiling can refuse
+                // here is the poses: an object of the labels without one.
+                .map_err(|e| poses_invalid(e.to_string()))?;
+            let scored = metrics::image_metrics(truth.as_slice(), &mask, width, height).map_err(
+                |source| EvalError::Metrics {
+                    path: dir.join(LABEL_DIR).join(frame_file_name(t, "png")),
+                    source,
+                },
+            )?;
+            averages.add(t as u32, &scored);
+            on_frame();
+        }
+    }
+    Ok(EvalReport::from_rows(&averages.rows()).pushes)
 }

@@ -11,9 +11,12 @@
 //!   ground truth).
 //! - [`generate`]: simulated datasets in the scene folder format (`riseg gen`).
 //! - [`preview`]: a picture of a scene for people.
+//! - [`ceiling`]: the motion ceiling, the best mask motion could reveal, that RISeg is
+//!   judged against.
 
 pub mod bench;
 pub mod camera;
+pub mod ceiling;
 pub mod demo;
 pub mod draw;
 pub mod episode;

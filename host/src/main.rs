@@ -7,8 +7,9 @@ use anyhow::{Context as _, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use riseg::bench::{self, BenchConfig};
+use riseg::ceiling::CeilingParams;
 use riseg::episode::Stop;
-use riseg::eval;
+use riseg::eval::{self, DatasetPoses};
 use riseg::flow::{
     DisFlow, FlowEstimator as _, FlowParams, RgbView,
     flo::{write_atomic, write_flo},
@@ -94,7 +95,8 @@ enum Command {
     /// Dense optical flow from FIRST.png to SECOND.png with the built-in DIS estimator.
     #[command(long_about = FLOW_HELP)]
     Flow(FlowArgs),
-    /// The paper's experiment (Table 1) on simulated scenes: static segmenter vs RISeg.
+    /// The paper's experiment (Table 1) on simulated scenes: static segmenter, RISeg and
+    /// the motion ceiling.
     #[command(long_about = BENCH_HELP)]
     Bench(BenchArgs),
     /// Run RISeg on recorded scenes (the pushes already happened) and write its masks.
@@ -198,17 +200,28 @@ impl Default for DemoArgs {
 }
 
 const BENCH_HELP: &str = "\
-The paper's experiment (its Table 1) on simulated scenes: static segmenter vs RISeg.
+The paper's experiment (its Table 1) on simulated scenes: static segmenter, RISeg and the \
+motion ceiling.
 
 Each scene is a table with 4-6 touching objects (the scenes of `riseg gen` with the same \
 seed). On each, the loop of Algorithm 1 runs with the built-in segmenter and optical \
 flow: FindAction picks a push from the static heatmap, the simulated arm makes it, \
 UpdateMask corrects the mask; at most 3 pushes, fewer when no push qualifies. Every frame \
-is scored against the simulator's ground truth, both the static segmentation of that \
-frame and RISeg's accumulated mask (at push 0 they are the same).
+is scored against the simulator's ground truth three times: the static segmentation of \
+that frame, RISeg's accumulated mask (at push 0 they are the same), and the motion \
+ceiling.
+
+The motion ceiling is the best mask a method that starts from the static segmentation \
+and splits by motion can reach after the pushes so far: the ground truth, with two \
+touching objects (at most 2 background pixels apart along a row or column) merged when \
+every static segmentation so far put them in one segment (the segment covering most of \
+each object) and every push so far moved them alike (their true rigid motions agree \
+within 1 mm at either object's centre and 0.5 degree); merges chain through touching \
+neighbours. RISeg is judged as a share of it.
 
 Columns (percent, averaged over the scenes that reached that push): overlap F, boundary \
-F, and the share of objects found with overlap F > 75 (see `riseg eval --help`). Then \
+F, and the share of objects found with overlap F > 75 (see `riseg eval --help`). Below \
+the table, per push: RISeg / ceiling, the ratio of their objects-found columns. Then \
 the median milliseconds per step of each stage: segment (static segmentation), flow (one \
 thread), frames, twists, grouping, mask (riseg-core's UpdateMask stages).
 
@@ -225,12 +238,13 @@ struct BenchArgs {
     /// Dataset seed (scene i uses the simulator seed `riseg gen` derives from it).
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Also write the report as JSON: {"static": [ROW..], "riseg": [ROW..],
-    /// "timing_ms": {..}}, ROW as in `riseg eval --json`. Written atomically.
+    /// Also write the report as JSON: {"static": [ROW..], "riseg": [ROW..], "ceiling":
+    /// [ROW..], "timing_ms": {..}}, ROW as in `riseg eval --json`. Written atomically.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
-    /// Also print one line per scene and frame: the objects found (F > 75) and boundary F
-    /// of the static segmentation and of RISeg, and why the episode stopped.
+    /// Also print one line per scene, one entry per frame: objects found (F > 75) by the
+    /// static segmentation -> by RISeg, then by the motion ceiling, and the boundary F of
+    /// static -> RISeg ("3/4->4/4 ceil 4/4 b82->97"); and why the episode stopped.
     #[arg(long)]
     per_scene: bool,
 }
@@ -419,6 +433,22 @@ the matching with more boundary matches). No
 prediction gives P = 100, R = 0; no ground-truth object gives P = 0, R = 100; both empty
 give 100.
 
+Motion ceiling: when every DATASET/scene_* folder also has the objects' true poses,
+  DATASET/scene_000/poses.json  {\"frames\": [[{\"label\": 1, \"translation_m\": [x, y, z],
+                                 \"rotation_xyzw\": [qx, qy, qz, qw]}, ...], ...]}
+                                frames[t] = after t pushes, world (table) frame, metres
+(and is a whole scene folder: scene_camera.json, rgb/, depth/, label/; see `riseg gen
+--help`), a second table scores the motion ceiling of the same frames: the best mask a
+method that starts from the static segmentation and splits by motion can reach. It is the
+ground truth with two touching objects (at most 2 background pixels apart along a row or
+column) merged when every static segmentation of frames 0..t (the built-in segmenter's,
+as `riseg run` uses) put them in one segment (the segment covering most of each object)
+and every push so far moved them alike (true rigid motions within 1 mm at either
+object's centre and 0.5 degree); merges chain through touching neighbours. Below it, per
+push: prediction / ceiling, the ratio of the objects-found columns. A malformed
+poses.json stops the run with an error naming it; without poses.json in every scene the
+ceiling is skipped with a note on stderr.
+
 Example:
   riseg eval --gt data/sim23 --pred out/sim23-static --json static.json";
 
@@ -446,7 +476,8 @@ struct EvalArgs {
     /// Predictions mirroring the dataset: PRED/scene_*/label/<frame>.png.
     #[arg(long, value_name = "PRED")]
     pred: PathBuf,
-    /// Also write the table as JSON (percent values) to FILE, atomically.
+    /// Also write the table as JSON (percent values) to FILE, atomically:
+    /// {"pushes": [ROW..]}, plus "ceiling": [ROW..] when the motion ceiling is scored.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
 }
@@ -633,13 +664,16 @@ fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
                 .static_metrics
                 .iter()
                 .zip(&r.riseg_metrics)
-                .map(|(s, m)| {
+                .zip(&r.ceiling_metrics)
+                .map(|((s, m), c)| {
                     format!(
-                        "{}/{}->{}/{} b{:.0}->{:.0}",
+                        "{}/{}->{}/{} ceil {}/{} b{:.0}->{:.0}",
                         s.objects_detected,
                         s.objects_gt,
                         m.objects_detected,
                         m.objects_gt,
+                        c.objects_detected,
+                        c.objects_gt,
                         100.0 * s.boundary.f_measure,
                         100.0 * m.boundary.f_measure
                     )
@@ -666,14 +700,35 @@ fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
 
 fn run_eval(args: &EvalArgs) -> anyhow::Result<()> {
     let pairs = eval::find_frame_pairs(&args.gt, &args.pred)?;
+    let poses = eval::dataset_poses(&args.gt)?;
+    let ceiling_frames: usize = match &poses {
+        DatasetPoses::All(scenes) => scenes.iter().map(|s| s.frames.len()).sum(),
+        DatasetPoses::Missing(_) => 0,
+    };
     // Hidden automatically when stderr is not a terminal.
-    let bar = ProgressBar::new(pairs.len() as u64).with_style(
+    let bar = ProgressBar::new((pairs.len() + ceiling_frames) as u64).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} images  {per_sec}  eta {eta}")
             .context("progress bar template")?,
     );
-    let report = eval::evaluate(&pairs, || bar.inc(1));
+    // The static segmenter `riseg run` uses.
+    let mut segmenter = ClassicalSegmenter::new(SegmenterParams::default())?;
+    let report = eval::evaluate(&pairs, || bar.inc(1)).and_then(|mut report| {
+        if let DatasetPoses::All(scenes) = &poses {
+            let params = CeilingParams::DEFAULT;
+            let rows = eval::evaluate_ceiling(scenes, &mut segmenter, &params, || bar.inc(1))?;
+            report.ceiling = Some(rows);
+        }
+        Ok(report)
+    });
     bar.finish_and_clear();
     let report = report?;
+    if let DatasetPoses::Missing(scene) = &poses {
+        eprintln!(
+            "motion ceiling not scored: {} has no {}",
+            scene.display(),
+            riseg::ceiling::POSES_FILE
+        );
+    }
     print!("{report}");
     if let Some(path) = &args.json {
         report.write_json(path)?;

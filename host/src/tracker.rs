@@ -34,7 +34,7 @@ use riseg_core::{
 use crate::{
     camera::CameraFrame,
     flow::{Flow, FlowError, FlowEstimator, RgbView},
-    segment::{RgbdFrame, SegmentError, Segmentation, StaticSegmenter},
+    segment::{SegmentError, Segmentation, StaticSegmenter},
     workspace::WorkspaceBuf,
 };
 
@@ -281,8 +281,7 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
             Some(seg) => seg,
             None => {
                 let clock = Instant::now();
-                let rgbd = RgbdFrame::new(w, h, frame.rgb.as_slice(), frame.depth_m.as_slice())?;
-                let seg = self.segmenter.segment(&rgbd, &frame.intrinsics)?;
+                let seg = self.segmenter.segment(&frame.rgbd()?, &frame.intrinsics)?;
                 times.segment_ms = ms_since(clock);
                 seg
             }

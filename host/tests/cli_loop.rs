@@ -51,7 +51,7 @@ fn bench_json_has_the_table_one_shape() {
     );
     let v: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("valid json");
-    for key in ["static", "riseg"] {
+    for key in ["static", "riseg", "ceiling"] {
         let rows = v[key].as_array().expect("rows");
         assert!(!rows.is_empty(), "{v}");
         assert_eq!(rows[0]["push"], 0);

@@ -1,10 +1,15 @@
 //! `riseg eval` on tiny PNG datasets written into a temporary folder: the binary end to
-//! end (table, JSON, errors naming the file) and the library's per-push averaging.
+//! end (table, JSON, errors naming the file) and the library's per-push averaging; and the
+//! motion ceiling on a dataset `riseg gen` made, with a `poses.json` written here.
 
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use std::sync::OnceLock;
 
+use riseg::ceiling::POSES_FILE;
 use riseg::eval::{self, EvalError, EvalReport};
+use riseg::scene::Scene;
 
 const W: u32 = 24;
 const H: u32 = 16;
@@ -104,6 +109,13 @@ fn a_dataset_against_itself_scores_100_everywhere() {
         }
         assert_eq!(push["objects_f75_pct"], 100.0);
     }
+    // Without poses.json there is no ceiling, and a note says why.
+    assert!(report.get("ceiling").is_none(), "{report}");
+    assert!(!stdout.contains("motion ceiling"), "{stdout}");
+    assert!(
+        stderr.contains("motion ceiling not scored") && stderr.contains("has no poses.json"),
+        "{stderr}"
+    );
     // Written by rename: no temporary file is left beside the report.
     let names: Vec<_> = std::fs::read_dir(json.parent().unwrap())
         .unwrap()
@@ -253,7 +265,196 @@ fn eval_help_explains_the_columns_and_the_layout() {
         "boundary P/R",
         "objects F>75",
         "--json",
+        "poses.json",
+        "\"rotation_xyzw\"",
+        "motion ceiling",
     ] {
         assert!(help.contains(needle), "missing {needle:?} in:\n{help}");
     }
+}
+
+/// A one-scene, one-push dataset made by `riseg gen` (once per test binary); tests copy it.
+fn generated_scene() -> &'static Path {
+    static DATASET: OnceLock<PathBuf> = OnceLock::new();
+    DATASET.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("eval-cli-ceiling");
+        let _ = std::fs::remove_dir_all(&dir);
+        let out = riseg(&[
+            "gen",
+            "--scenes",
+            "1",
+            "--pushes",
+            "1",
+            "--seed",
+            "5",
+            "--out",
+            &dir.display().to_string(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        dir
+    })
+}
+
+/// A private copy of the generated dataset under `root`; returns the dataset folder and its
+/// scene folder.
+fn copy_of_generated(root: &Path) -> (PathBuf, PathBuf) {
+    fn copy_dir(from: &Path, to: &Path) {
+        std::fs::create_dir_all(to).expect("creating a folder of the copy");
+        for entry in std::fs::read_dir(from).expect("listing the generated dataset") {
+            let path = entry.expect("a folder entry").path();
+            let dest = to.join(path.file_name().expect("an entry has a name"));
+            if path.is_dir() {
+                copy_dir(&path, &dest);
+            } else {
+                std::fs::copy(&path, &dest).expect("copying a file");
+            }
+        }
+    }
+    let data = root.join("data");
+    copy_dir(generated_scene(), &data);
+    (data.clone(), data.join("scene_000"))
+}
+
+/// The labels of the scene's objects (every frame).
+fn object_labels(scene_dir: &Path) -> BTreeSet<u16> {
+    let scene = Scene::read(scene_dir).expect("the generated scene reads");
+    scene
+        .labels
+        .expect("the generated scene has labels")
+        .iter()
+        .flat_map(|l| l.as_slice().iter().copied())
+        .filter(|&l| l != 0)
+        .collect()
+}
+
+/// A poses.json for `frames` frames: object `l` starts at `(0.1 l, 0, 0)` and after push `t`
+/// has moved by `step_m(l) · t` along x, unrotated.
+fn write_poses(
+    scene_dir: &Path,
+    labels: &BTreeSet<u16>,
+    frames: usize,
+    step_m: impl Fn(u16) -> f64,
+) {
+    let frames: Vec<serde_json::Value> = (0..frames)
+        .map(|t| {
+            labels
+                .iter()
+                .map(|&l| {
+                    let x = 0.1 * f64::from(l) + step_m(l) * t as f64;
+                    serde_json::json!({
+                        "label": l,
+                        "translation_m": [x, 0.0, 0.02],
+                        "rotation_xyzw": [0.0, 0.0, 0.0, 1.0],
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    let json = serde_json::json!({ "frames": frames });
+    std::fs::write(scene_dir.join(POSES_FILE), json.to_string()).expect("writing poses.json");
+}
+
+#[test]
+fn with_poses_eval_scores_the_motion_ceiling_beside_the_pushes() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, scene) = copy_of_generated(dir.path());
+    let labels = object_labels(&scene);
+    assert!(labels.len() >= 4, "{labels:?}");
+    // The push moves every object differently (object l by l cm): after it, nothing can
+    // stay merged, so the ceiling of frame 1 is the ground truth itself.
+    write_poses(&scene, &labels, 2, |l| 0.01 * f64::from(l));
+    let json = dir.path().join("metrics.json");
+
+    let out = eval_cli(&data, &data, Some(&json));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("motion ceiling"), "{stdout}");
+    assert!(
+        stdout.contains("prediction / ceiling, objects F>75 at push 1: 1.00"),
+        "{stdout}"
+    );
+
+    let report: EvalReport =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let ceiling = report.ceiling.as_ref().expect("a ceiling in the JSON");
+    assert_eq!(ceiling.len(), 2, "{report:?}");
+    assert_eq!((ceiling[0].push, ceiling[0].images), (0, 1));
+    let after = ceiling[1];
+    assert_eq!((after.push, after.images), (1, 1));
+    for v in [
+        after.overlap.p,
+        after.overlap.r,
+        after.boundary.f,
+        after.objects_f75_pct,
+    ] {
+        assert_eq!(v, 100.0, "{after:?}");
+    }
+
+    // When every object moves alike, the push reveals nothing: frame 1's ceiling can only
+    // keep or lose what frame 0's had merged, never split more than the distinct case.
+    write_poses(&scene, &labels, 2, |_| 0.02);
+    let out = eval_cli(&data, &data, None);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let pairs = eval::find_frame_pairs(&data, &data).unwrap();
+    let poses = match eval::dataset_poses(&data).unwrap() {
+        eval::DatasetPoses::All(scenes) => scenes,
+        eval::DatasetPoses::Missing(s) => panic!("{} has no poses", s.display()),
+    };
+    assert_eq!(pairs.len(), 2);
+    let mut segmenter = riseg::segment::ClassicalSegmenter::new(Default::default()).unwrap();
+    let mut frames = 0;
+    let alike = eval::evaluate_ceiling(
+        &poses,
+        &mut segmenter,
+        &riseg::ceiling::CeilingParams::DEFAULT,
+        || frames += 1,
+    )
+    .unwrap();
+    assert_eq!(frames, 2);
+    assert_eq!(
+        alike[0], ceiling[0],
+        "frame 0 does not depend on the motions"
+    );
+    assert!(alike[1].objects_f75_pct <= after.objects_f75_pct);
+}
+
+#[test]
+fn a_malformed_or_mismatched_poses_json_is_an_error_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, scene) = copy_of_generated(dir.path());
+    let poses = scene.join(POSES_FILE);
+    let labels = object_labels(&scene);
+
+    let expect_error = |says: &str| {
+        let out = eval_cli(&data, &data, None);
+        assert!(!out.status.success());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains(&poses.display().to_string()), "{stderr}");
+        assert!(stderr.contains(says), "{stderr} should say {says}");
+    };
+    std::fs::write(
+        &poses,
+        r#"{"frames": [[{"label": 1, "translation_m": [0, 0], "rotation_xyzw": [0, 0, 0, 1]}]]}"#,
+    )
+    .unwrap();
+    expect_error("malformed poses file");
+
+    write_poses(&scene, &labels, 1, |_| 0.0);
+    expect_error("1 frames of poses, but the scene has 2 frames");
+
+    let first = *labels.first().unwrap();
+    let fewer: BTreeSet<u16> = labels.iter().copied().filter(|&l| l != first).collect();
+    write_poses(&scene, &fewer, 2, |_| 0.0);
+    expect_error(&format!(
+        "frame 0: object {first} is in the ground truth but has no pose"
+    ));
 }

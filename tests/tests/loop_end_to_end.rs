@@ -46,6 +46,7 @@ fn a_three_scene_bench_improves_on_the_static_segmenter_and_repeats_exactly() {
     let again = bench_scene(&cfg, 0).expect("scene 0 again");
     assert_eq!(again.riseg_metrics, results[0].riseg_metrics);
     assert_eq!(again.static_metrics, results[0].static_metrics);
+    assert_eq!(again.ceiling_metrics, results[0].ceiling_metrics);
 }
 
 #[test]

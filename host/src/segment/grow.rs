@@ -60,7 +60,8 @@ pub(super) struct GrowInput<'a> {
     pub(super) px_area_m2: &'a [f32],
 }
 
-fn find(parent: &mut [u32], mut i: u32) -> u32 {
+/// The root of `i` in the union-find forest `parent` (halving the path on the way).
+pub(crate) fn find(parent: &mut [u32], mut i: u32) -> u32 {
     while parent[i as usize] != i {
         let up = parent[parent[i as usize] as usize];
         parent[i as usize] = up;
@@ -69,7 +70,8 @@ fn find(parent: &mut [u32], mut i: u32) -> u32 {
     i
 }
 
-fn union(parent: &mut [u32], a: u32, b: u32) {
+/// Joins the trees of `a` and `b`; the smaller root becomes the root of both.
+pub(crate) fn union(parent: &mut [u32], a: u32, b: u32) {
     let (ra, rb) = (find(parent, a), find(parent, b));
     if ra != rb {
         parent[ra.max(rb) as usize] = ra.min(rb);

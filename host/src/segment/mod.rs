@@ -35,6 +35,10 @@ pub use classical::{ClassicalOutput, ClassicalSegmenter};
 pub use params::SegmenterParams;
 pub use plane::TablePlane;
 
+/// Union-find over `u32` indices (roots are the smallest index), shared with
+/// [`crate::ceiling`].
+pub(crate) use grow::{find as union_find_root, union as union_find_join};
+
 /// Heatmap values at or above this are "certain" object pixels (the paper's `l_u`).
 pub const HEAT_CERTAIN: u8 = 150;
 /// Heatmap values in `HEAT_UNCERTAIN..HEAT_CERTAIN` are "uncertain" (the paper's `l_l`).

@@ -23,7 +23,7 @@ pub const SIM_MAX_PUSH_LEN_M: f32 = 0.05;
 /// Highest the simulated tool may go over the table, metres.
 pub const SIM_MAX_TOOL_HEIGHT_M: f32 = 0.3;
 
-/// Renders the shared scene, with its ground-truth labels.
+/// Renders the shared scene, with its ground-truth labels and object poses.
 #[derive(Debug)]
 pub struct SimCamera {
     scene: Rc<RefCell<SimScene>>,
@@ -37,6 +37,7 @@ impl Camera for SimCamera {
             depth_m: frame.depth_m,
             intrinsics: frame.intrinsics,
             truth: Some(frame.labels),
+            truth_poses: Some(frame.object_poses),
         })
     }
 }

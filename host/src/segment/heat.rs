@@ -229,6 +229,9 @@ pub(super) fn heatmap(
     }
 }
 
+/// A unit direction and the length along it, metres.
+type Axis = ([f64; 3], f64);
+
 /// First and second moments of a segment's 3-D points (camera frame, metres).
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Moments {
@@ -255,7 +258,7 @@ impl Moments {
     /// Centroid and the two in-plane principal axes with their lengths: a uniform
     /// rectangle of side `L` along an axis has variance `L²/12` there, so `L = √(12 λ)`
     /// (robust to a few stray points, unlike the span).
-    fn axes(&self) -> Option<([f64; 3], [([f64; 3], f64); 2])> {
+    fn axes(&self) -> Option<([f64; 3], [Axis; 2])> {
         if self.count < 3.0 {
             return None;
         }

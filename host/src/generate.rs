@@ -3,8 +3,8 @@
 //! Scene `i` of a dataset with seed `S` is simulated from [`scene_seed`]`(S, i)`: the
 //! initial frame, then `pushes` scripted pushes ([`SimScene::plan_push`]: one object of a
 //! touching pair, across the line joining the pair, [`DEFAULT_PUSH_LEN_M`]), each followed
-//! by a frame. Every frame gets labels; every push gets the exact flow and an
-//! `actions.json` entry in the camera frame.
+//! by a frame. Every frame gets labels and every object's pose (`poses.json`); every push
+//! gets the exact flow and an `actions.json` entry in the camera frame.
 //!
 //! A simulated scene is kept only if it is a useful benchmark scene: every object is seen
 //! by at least [`MIN_VISIBLE_PX`] pixels in every frame, every push finds a touching pair
@@ -26,7 +26,7 @@ use crate::{
     preview::preview,
     scene::{PushAction, Scene, SceneCamera, SceneError},
     sim::{
-        DEFAULT_PUSH_LEN_M, ObjectBounds, ObjectPose, Push, RgbdFrame, SimError, SimScene,
+        DEFAULT_PUSH_LEN_M, ObjectBounds, Push, RgbdFrame, SimError, SimScene,
         TABLE_HALF_EXTENTS_M, ground_truth_flow,
     },
 };
@@ -78,14 +78,13 @@ pub enum GenError {
 /// One simulated scene, ready to write.
 #[derive(Debug, Clone)]
 pub struct GeneratedScene {
-    /// The scene in the folder format (depth in millimetres, labels, flow, actions).
+    /// The scene in the folder format (depth in millimetres, labels, flow, actions, object
+    /// poses).
     pub scene: Scene,
     /// Its preview picture.
     pub preview: RgbImage,
     /// The pushes in the world (table) frame.
     pub pushes: Vec<Push>,
-    /// Every object's pose in the world (table) frame, per frame.
-    pub object_poses: Vec<Vec<ObjectPose>>,
     /// Number of objects.
     pub objects: usize,
     /// Attempts needed (1 = the first simulation was usable).
@@ -227,7 +226,7 @@ fn simulate(seed: u64, pushes: usize) -> Result<Result<GeneratedScene, String>, 
             length_m: p.length_m,
         });
     }
-    let object_poses = frames.iter().map(|f| f.object_poses.clone()).collect();
+    let poses = frames.iter().map(|f| f.object_poses.clone()).collect();
     let scene = Scene {
         camera: SceneCamera {
             width: config.width,
@@ -243,12 +242,12 @@ fn simulate(seed: u64, pushes: usize) -> Result<Result<GeneratedScene, String>, 
         labels: Some(frames.into_iter().map(|f| f.labels).collect()),
         flow: Some(flows),
         actions,
+        poses: Some(poses),
     };
     Ok(Ok(GeneratedScene {
         preview: preview(&scene),
         scene,
         pushes: done,
-        object_poses,
         objects: labels.len(),
         attempts: 1,
     }))

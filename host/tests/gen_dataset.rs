@@ -17,7 +17,7 @@ use std::{
 use riseg::{
     generate::{GeneratedScene, generate_scene, scene_dir_name, scene_seed, write_dataset},
     imageio::{FlowImage, Gray16Image, RgbImage},
-    scene::{Scene, list_scenes},
+    scene::{ObjectPose, Scene, list_scenes},
     sim::TABLE_HALF_EXTENTS_M,
 };
 
@@ -72,8 +72,9 @@ fn same_seed_gives_identical_files() {
     let again = fresh_dir("b");
     write_dataset(&again, SCENES, SEED, PUSHES, |_, _| {}).unwrap();
     let second = all_files(&again);
-    // 3 scenes x (camera + actions + 4 rgb + 4 depth + 4 label + 3 flow) + 3 previews.
-    assert_eq!(first.len(), SCENES * 17 + SCENES, "{:?}", first.keys());
+    // 3 scenes x (camera + actions + poses + 4 rgb + 4 depth + 4 label + 3 flow) + 3
+    // previews.
+    assert_eq!(first.len(), SCENES * 18 + SCENES, "{:?}", first.keys());
     assert_eq!(
         first.keys().collect::<Vec<_>>(),
         second.keys().collect::<Vec<_>>()
@@ -191,7 +192,7 @@ fn generated_scenes_meet_the_contract() {
             );
         }
         // No object leaves the table: centres over the table top, resting on it.
-        for (t, poses) in generated.object_poses.iter().enumerate() {
+        for (t, poses) in scene.poses.as_ref().unwrap().iter().enumerate() {
             assert_eq!(poses.len(), objects.len());
             for p in poses {
                 let c = p.world_from_object.translation.vector;
@@ -264,14 +265,15 @@ fn warping_back_by_ground_truth_flow_reproduces_the_previous_frame() {
         let (labels, flow) = (s.labels.as_ref().unwrap(), s.flow.as_ref().unwrap());
         for t in 0..s.frames() - 1 {
             let turned_deg = |label: u16| {
-                let pose = |poses: &[riseg::sim::ObjectPose]| {
+                let pose = |poses: &[ObjectPose]| {
                     poses
                         .iter()
                         .find(|p| p.label == label)
                         .unwrap()
                         .world_from_object
                 };
-                let (a, b) = (pose(&g.object_poses[t]), pose(&g.object_poses[t + 1]));
+                let poses = s.poses.as_ref().unwrap();
+                let (a, b) = (pose(&poses[t]), pose(&poses[t + 1]));
                 (b.rotation * a.rotation.inverse()).angle().to_degrees()
             };
             let (now, next) = (&s.rgb[t], &s.rgb[t + 1]);

@@ -48,6 +48,9 @@ use rapier3d::prelude::{
 };
 use riseg_core::{Intrinsics, Pose, rng::Pcg32};
 
+/// Where one object is: its label (as in [`RgbdFrame::labels`]) and body frame in the world
+/// frame. Defined with the scene folder format, which stores it (`poses.json`).
+pub use crate::scene::ObjectPose;
 pub use flow::{UNKNOWN_FLOW, ground_truth_flow};
 pub use layout::ObjectShape;
 pub use rig::{SIM_MAX_PUSH_LEN_M, SIM_MAX_TOOL_HEIGHT_M, SimCamera, SimRig, SimRobot};
@@ -214,15 +217,6 @@ pub enum SimError {
     /// A label in the image has no object pose.
     #[error("label {0} has no object pose")]
     UnknownLabel(u16),
-}
-
-/// Where one object is.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ObjectPose {
-    /// The object's instance label (as in [`RgbdFrame::labels`]).
-    pub label: u16,
-    /// The object's body frame in the world frame.
-    pub world_from_object: Pose,
 }
 
 /// What one object is.

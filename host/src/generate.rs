@@ -1,17 +1,19 @@
 //! Simulated datasets in the scene folder format (`riseg gen`).
 //!
-//! Scene `i` of a dataset with seed `S` is simulated from [`scene_seed`]`(S, i)`: the
-//! initial frame, then `pushes` scripted pushes ([`SimScene::plan_push`]: one object of a
-//! touching pair, across the line joining the pair, [`DEFAULT_PUSH_LEN_M`]), each followed
-//! by a frame. Every frame gets labels and every object's pose (`poses.json`); every push
-//! gets the exact flow and an `actions.json` entry in the camera frame.
+//! Scene `i` of a dataset with seed `S` and scene family `L` ([`Layout`]) is simulated from
+//! [`scene_seed`]`(S, i)` with [`SimConfig::D415`] drawing `L`: the initial frame, then
+//! `pushes` scripted pushes ([`SimScene::plan_push`], [`DEFAULT_PUSH_LEN_M`]: in a loose
+//! scene one object of a touching pair across the line joining the pair; in a packed or
+//! mixed scene a push that shears the pack), each followed by a frame. Every frame gets
+//! labels and every object's pose (`poses.json`); every push gets the exact flow and an
+//! `actions.json` entry in the camera frame.
 //!
 //! A simulated scene is kept only if it is a useful benchmark scene: every object is seen
 //! by at least [`MIN_VISIBLE_PX`] pixels in every frame, every push finds a touching pair
 //! and moves some object by more than [`MIN_PUSH_FLOW_PX`] of ground-truth flow, and no
 //! object leaves the table. Otherwise the next attempt seed is tried (at most
 //! [`MAX_ATTEMPTS`]); [`GeneratedScene::attempts`] says how many were needed. All of this is
-//! deterministic, so the same dataset seed gives the same files, byte for byte.
+//! deterministic, so the same dataset seed and family give the same files, byte for byte.
 //!
 //! Output layout: `OUT/scene_000/ …` (see [`crate::scene`]) and a preview per scene,
 //! `OUT/preview/scene_000.png` ([`crate::preview`]).
@@ -26,7 +28,7 @@ use crate::{
     preview::preview,
     scene::{PushAction, Scene, SceneCamera, SceneError},
     sim::{
-        DEFAULT_PUSH_LEN_M, ObjectBounds, Push, RgbdFrame, SimError, SimScene,
+        DEFAULT_PUSH_LEN_M, Layout, ObjectBounds, Push, RgbdFrame, SimConfig, SimError, SimScene,
         TABLE_HALF_EXTENTS_M, ground_truth_flow,
     },
 };
@@ -126,11 +128,15 @@ fn on_table(bounds: &[ObjectBounds]) -> bool {
     })
 }
 
-/// Simulates scene `seed` with `pushes` pushes (see the module docs).
+/// Simulates scene `seed` of family `layout` with `pushes` pushes (see the module docs).
 ///
 /// # Errors
 /// [`GenError::NoValidScene`] if no attempt was usable.
-pub fn generate_scene(seed: u64, pushes: usize) -> Result<GeneratedScene, GenError> {
+pub fn generate_scene(
+    seed: u64,
+    layout: Layout,
+    pushes: usize,
+) -> Result<GeneratedScene, GenError> {
     let mut reason = String::new();
     for attempt in 0..MAX_ATTEMPTS {
         let attempt_seed = if attempt == 0 {
@@ -138,7 +144,7 @@ pub fn generate_scene(seed: u64, pushes: usize) -> Result<GeneratedScene, GenErr
         } else {
             scene_seed(seed, attempt as usize)
         };
-        match simulate(attempt_seed, pushes)? {
+        match simulate(attempt_seed, layout, pushes)? {
             Ok(mut g) => {
                 g.attempts = attempt + 1;
                 return Ok(g);
@@ -154,8 +160,12 @@ pub fn generate_scene(seed: u64, pushes: usize) -> Result<GeneratedScene, GenErr
 }
 
 /// One attempt: `Ok(Err(reason))` when the scene is not usable.
-fn simulate(seed: u64, pushes: usize) -> Result<Result<GeneratedScene, String>, GenError> {
-    let mut sim = match SimScene::new(seed) {
+fn simulate(
+    seed: u64,
+    layout: Layout,
+    pushes: usize,
+) -> Result<Result<GeneratedScene, String>, GenError> {
+    let mut sim = match SimScene::with_config(seed, SimConfig::D415.with_layout(layout)) {
         Ok(sim) => sim,
         Err(SimError::Placement { .. }) => return Ok(Err("no object placement".into())),
         Err(e) => return Err(e.into()),
@@ -259,8 +269,9 @@ pub fn scene_dir_name(index: usize) -> String {
     format!("scene_{index:03}")
 }
 
-/// Generates `scenes` scenes from `seed` with `pushes` pushes each into `out` (created if
-/// missing), calling `on_scene(index, &scene)` after each scene is written.
+/// Generates `scenes` scenes of family `layout` from `seed` with `pushes` pushes each into
+/// `out` (created if missing), calling `on_scene(index, &scene)` after each scene is
+/// written.
 ///
 /// # Errors
 /// [`GenError::CreateDir`] if `out` cannot be created; [`SceneError::Exists`] (as
@@ -269,6 +280,7 @@ pub fn write_dataset(
     out: &Path,
     scenes: usize,
     seed: u64,
+    layout: Layout,
     pushes: usize,
     mut on_scene: impl FnMut(usize, &GeneratedScene),
 ) -> Result<(), GenError> {
@@ -278,7 +290,7 @@ pub fn write_dataset(
         source,
     })?;
     for i in 0..scenes {
-        let g = generate_scene(scene_seed(seed, i), pushes)?;
+        let g = generate_scene(scene_seed(seed, i), layout, pushes)?;
         let name = scene_dir_name(i);
         g.scene.write(&out.join(&name))?;
         write_rgb8(&previews.join(format!("{name}.png")), &g.preview)?;

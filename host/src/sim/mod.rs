@@ -682,9 +682,12 @@ impl SimScene {
     /// travels `length_m`.
     /// - [`Layout::Loose`]: one object of a touching pair is pushed across the line joining
     ///   the pair's centres (all touching pairs, both objects of each, both directions).
-    /// - [`Layout::Packed`], [`Layout::Mixed`]: the push shears the pack (see
-    ///   [`SimScene::shear_pushes`]): part of the objects slides along a face it shares with
-    ///   the rest, which stays.
+    /// - [`Layout::Packed`], [`Layout::Mixed`]: the push shears the pack. A box is pushed
+    ///   along one of its face normals from a free face, any other shape across the line to
+    ///   a touching neighbour; kept are the pushes whose carried objects (the pushed one and,
+    ///   transitively, every object a carried one would run into by more than 1 mm if it
+    ///   moved rigidly along the push) are not all of them and touch one that stays. Part of
+    ///   the objects slides along a face it shares with the rest, which stays.
     pub fn plan_push(&mut self, length_m: f32) -> Option<Push> {
         let candidates = match self.config.layout {
             Layout::Loose => self.across_pushes(length_m),

@@ -89,7 +89,7 @@ fn textured_pair(w: usize, h: usize, seed: u64) -> Written {
 /// Frames 0 and 1 of the simulated scene `seed` (one scripted push), with the exact flow;
 /// moving = object pixels whose true flow is known and longer than 0.1 px.
 fn sim_pair(seed: u64) -> Result<Written> {
-    let g = riseg::generate::generate_scene(seed, 1)?;
+    let g = riseg::generate::generate_scene(seed, riseg::sim::Layout::Loose, 1)?;
     let s = &g.scene;
     let (w, h) = (s.camera.width as usize, s.camera.height as usize);
     let flow_image = s

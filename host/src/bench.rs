@@ -2,8 +2,9 @@
 //!
 //! # Contract
 //!
-//! Scene `i` of seed `S` is the simulator's scene [`scene_seed`]`(S, i)` (the next attempt
-//! seed when no placement fits, as `riseg gen` does). On each scene one episode of
+//! Scene `i` of seed `S` is the simulator's scene [`scene_seed`]`(S, i)` of the configured
+//! scene family ([`BenchConfig::layout`]; the next attempt seed when no placement fits, as
+//! `riseg gen` does). On each scene one episode of
 //! Algorithm 1 runs ([`crate::episode::run_episode`]) with the built-in segmenter and flow: the loop picks
 //! its own pushes, at most [`Config::max_pushes`]. Every captured frame `t` is scored
 //! against the simulator's ground truth three times: the static segmentation of that frame
@@ -33,7 +34,7 @@ use crate::{
     generate::{MAX_ATTEMPTS, scene_seed},
     metrics::{ImageMetrics, MetricsError, PushAverages, image_metrics},
     segment::{ClassicalSegmenter, SegmentError, SegmenterParams},
-    sim::{SimError, SimRig, SimScene},
+    sim::{Layout, SimConfig, SimError, SimRig, SimScene},
     tracker::{StageTimes, TrackError, Tracker},
 };
 
@@ -87,6 +88,8 @@ pub struct BenchConfig {
     pub scenes: usize,
     /// Dataset seed.
     pub seed: u64,
+    /// Scene family.
+    pub layout: Layout,
     /// riseg-core settings.
     pub core: Config,
     /// Static segmenter settings.
@@ -96,12 +99,14 @@ pub struct BenchConfig {
 }
 
 impl BenchConfig {
-    /// The paper's settings, the built-in segmenter and DIS "medium".
+    /// The paper's settings, the built-in segmenter and DIS "medium", on
+    /// [`Layout::Loose`] scenes.
     #[must_use]
     pub fn new(scenes: usize, seed: u64) -> Self {
         Self {
             scenes,
             seed,
+            layout: Layout::Loose,
             core: Config::PAPER,
             segmenter: SegmenterParams::default(),
             flow: FlowParams::MEDIUM,
@@ -154,7 +159,7 @@ pub struct BenchReport {
 /// # Errors
 /// [`BenchError`] from the simulator or the loop.
 pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchError> {
-    let (sim, sim_seed) = place_scene(scene_seed(cfg.seed, scene))
+    let (sim, sim_seed) = place_scene(scene_seed(cfg.seed, scene), cfg.layout)
         .map_err(|source| BenchError::Sim { scene, source })?;
     let mut rig = SimRig::new(sim);
     let mut tracker = Tracker::new(
@@ -234,8 +239,9 @@ fn score_ceiling(
 }
 
 /// The first attempt seed from `seed` (as `riseg gen` derives them) whose objects the
-/// simulator can place.
-fn place_scene(seed: u64) -> Result<(SimScene, u64), SimError> {
+/// simulator can place in a scene of `layout`.
+fn place_scene(seed: u64, layout: Layout) -> Result<(SimScene, u64), SimError> {
+    let config = SimConfig::D415.with_layout(layout);
     let mut last = None;
     for attempt in 0..MAX_ATTEMPTS {
         let attempt_seed = if attempt == 0 {
@@ -243,7 +249,7 @@ fn place_scene(seed: u64) -> Result<(SimScene, u64), SimError> {
         } else {
             scene_seed(seed, attempt as usize)
         };
-        match SimScene::new(attempt_seed) {
+        match SimScene::with_config(attempt_seed, config) {
             Ok(sim) => return Ok((sim, attempt_seed)),
             Err(e @ SimError::Placement { .. }) => last = Some(e),
             Err(e) => return Err(e),

@@ -1,9 +1,11 @@
 //! Simulated datasets in the scene folder format (`riseg gen`).
 //!
-//! Scene `i` of a dataset with seed `S` is simulated from [`scene_seed`]`(S, i)`: the
-//! initial frame, then `pushes` scripted pushes ([`SimScene::plan_push`]: one object of a
-//! touching pair, across the line joining the pair, [`DEFAULT_PUSH_LEN_M`]), each followed
-//! by a frame. Every frame gets labels; every push gets the exact flow and an
+//! Scene `i` of a dataset with seed `S` and scene family `L` ([`Layout`]) is simulated from
+//! [`scene_seed`]`(S, i)` with [`SimConfig::D415`] drawing `L`: the initial frame, then
+//! `pushes` scripted pushes ([`SimScene::plan_push`], [`DEFAULT_PUSH_LEN_M`]: in a loose
+//! scene one object of a touching pair across the line joining the pair; in a packed or
+//! mixed scene a push that shears the pack), each followed by a frame. Every frame gets
+//! labels and every object's pose (`poses.json`); every push gets the exact flow and an
 //! `actions.json` entry in the camera frame.
 //!
 //! A simulated scene is kept only if it is a useful benchmark scene: every object is seen
@@ -11,7 +13,7 @@
 //! and moves some object by more than [`MIN_PUSH_FLOW_PX`] of ground-truth flow, and no
 //! object leaves the table. Otherwise the next attempt seed is tried (at most
 //! [`MAX_ATTEMPTS`]); [`GeneratedScene::attempts`] says how many were needed. All of this is
-//! deterministic, so the same dataset seed gives the same files, byte for byte.
+//! deterministic, so the same dataset seed and family give the same files, byte for byte.
 //!
 //! Output layout: `OUT/scene_000/ …` (see [`crate::scene`]) and a preview per scene,
 //! `OUT/preview/scene_000.png` ([`crate::preview`]).
@@ -26,7 +28,7 @@ use crate::{
     preview::preview,
     scene::{PushAction, Scene, SceneCamera, SceneError},
     sim::{
-        DEFAULT_PUSH_LEN_M, ObjectBounds, ObjectPose, Push, RgbdFrame, SimError, SimScene,
+        DEFAULT_PUSH_LEN_M, Layout, ObjectBounds, Push, RgbdFrame, SimConfig, SimError, SimScene,
         TABLE_HALF_EXTENTS_M, ground_truth_flow,
     },
 };
@@ -78,14 +80,13 @@ pub enum GenError {
 /// One simulated scene, ready to write.
 #[derive(Debug, Clone)]
 pub struct GeneratedScene {
-    /// The scene in the folder format (depth in millimetres, labels, flow, actions).
+    /// The scene in the folder format (depth in millimetres, labels, flow, actions, object
+    /// poses).
     pub scene: Scene,
     /// Its preview picture.
     pub preview: RgbImage,
     /// The pushes in the world (table) frame.
     pub pushes: Vec<Push>,
-    /// Every object's pose in the world (table) frame, per frame.
-    pub object_poses: Vec<Vec<ObjectPose>>,
     /// Number of objects.
     pub objects: usize,
     /// Attempts needed (1 = the first simulation was usable).
@@ -127,11 +128,15 @@ fn on_table(bounds: &[ObjectBounds]) -> bool {
     })
 }
 
-/// Simulates scene `seed` with `pushes` pushes (see the module docs).
+/// Simulates scene `seed` of family `layout` with `pushes` pushes (see the module docs).
 ///
 /// # Errors
 /// [`GenError::NoValidScene`] if no attempt was usable.
-pub fn generate_scene(seed: u64, pushes: usize) -> Result<GeneratedScene, GenError> {
+pub fn generate_scene(
+    seed: u64,
+    layout: Layout,
+    pushes: usize,
+) -> Result<GeneratedScene, GenError> {
     let mut reason = String::new();
     for attempt in 0..MAX_ATTEMPTS {
         let attempt_seed = if attempt == 0 {
@@ -139,7 +144,7 @@ pub fn generate_scene(seed: u64, pushes: usize) -> Result<GeneratedScene, GenErr
         } else {
             scene_seed(seed, attempt as usize)
         };
-        match simulate(attempt_seed, pushes)? {
+        match simulate(attempt_seed, layout, pushes)? {
             Ok(mut g) => {
                 g.attempts = attempt + 1;
                 return Ok(g);
@@ -155,8 +160,12 @@ pub fn generate_scene(seed: u64, pushes: usize) -> Result<GeneratedScene, GenErr
 }
 
 /// One attempt: `Ok(Err(reason))` when the scene is not usable.
-fn simulate(seed: u64, pushes: usize) -> Result<Result<GeneratedScene, String>, GenError> {
-    let mut sim = match SimScene::new(seed) {
+fn simulate(
+    seed: u64,
+    layout: Layout,
+    pushes: usize,
+) -> Result<Result<GeneratedScene, String>, GenError> {
+    let mut sim = match SimScene::with_config(seed, SimConfig::D415.with_layout(layout)) {
         Ok(sim) => sim,
         Err(SimError::Placement { .. }) => return Ok(Err("no object placement".into())),
         Err(e) => return Err(e.into()),
@@ -227,7 +236,7 @@ fn simulate(seed: u64, pushes: usize) -> Result<Result<GeneratedScene, String>, 
             length_m: p.length_m,
         });
     }
-    let object_poses = frames.iter().map(|f| f.object_poses.clone()).collect();
+    let poses = frames.iter().map(|f| f.object_poses.clone()).collect();
     let scene = Scene {
         camera: SceneCamera {
             width: config.width,
@@ -243,12 +252,12 @@ fn simulate(seed: u64, pushes: usize) -> Result<Result<GeneratedScene, String>, 
         labels: Some(frames.into_iter().map(|f| f.labels).collect()),
         flow: Some(flows),
         actions,
+        poses: Some(poses),
     };
     Ok(Ok(GeneratedScene {
         preview: preview(&scene),
         scene,
         pushes: done,
-        object_poses,
         objects: labels.len(),
         attempts: 1,
     }))
@@ -260,8 +269,9 @@ pub fn scene_dir_name(index: usize) -> String {
     format!("scene_{index:03}")
 }
 
-/// Generates `scenes` scenes from `seed` with `pushes` pushes each into `out` (created if
-/// missing), calling `on_scene(index, &scene)` after each scene is written.
+/// Generates `scenes` scenes of family `layout` from `seed` with `pushes` pushes each into
+/// `out` (created if missing), calling `on_scene(index, &scene)` after each scene is
+/// written.
 ///
 /// # Errors
 /// [`GenError::CreateDir`] if `out` cannot be created; [`SceneError::Exists`] (as
@@ -270,6 +280,7 @@ pub fn write_dataset(
     out: &Path,
     scenes: usize,
     seed: u64,
+    layout: Layout,
     pushes: usize,
     mut on_scene: impl FnMut(usize, &GeneratedScene),
 ) -> Result<(), GenError> {
@@ -279,7 +290,7 @@ pub fn write_dataset(
         source,
     })?;
     for i in 0..scenes {
-        let g = generate_scene(scene_seed(seed, i), pushes)?;
+        let g = generate_scene(scene_seed(seed, i), layout, pushes)?;
         let name = scene_dir_name(i);
         g.scene.write(&out.join(&name))?;
         write_rgb8(&previews.join(format!("{name}.png")), &g.preview)?;

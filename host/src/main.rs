@@ -20,6 +20,7 @@ use riseg::imageio::{self, Image, ImageIoError};
 use riseg::replay::{InputDirs, run_scene};
 use riseg::scene::{self, SceneCamera};
 use riseg::segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams, viz};
+use riseg::sim::Layout;
 use riseg::tracker::Tracker;
 
 /// RISeg: robot interactive object segmentation via body frame-invariant features.
@@ -48,12 +49,28 @@ enum Command {
     Eval(EvalArgs),
     /// Make a simulated dataset: scenes of touching objects, pushed, with ground truth.
     ///
-    /// Each scene is a table with 4-6 objects of similar size (3-7 cm), shape and colour,
-    /// most touching a neighbour, seen by a D415-like RGB-D camera (640x480, fx = fy = 615)
-    /// 0.60 m above the table, tilted 15 degrees. The scene is recorded, then pushed
-    /// --pushes times: each push moves one object of a touching pair 2 cm across the line
-    /// joining the pair (rapier3d physics), and the scene is recorded again. The same
-    /// --seed always gives the same files, byte for byte.
+    /// Each scene is a table with 4-6 objects seen by a D415-like RGB-D camera (640x480,
+    /// fx = fy = 615, depth noise 1 mm at 0.6 m) 0.60 m above the table, tilted 15 degrees.
+    /// The scene is recorded, then pushed --pushes times by 2 cm (rapier3d physics), and
+    /// recorded again after each push. The same --seed and --layout always give the same
+    /// files, byte for byte.
+    ///
+    /// Scene families (--layout):
+    ///
+    ///   loose   4-6 objects of mixed shapes (a two-shape family of boxes, cylinders,
+    ///           capsules, spheres, rounded boxes), 3-7 cm, similar colours, most touching
+    ///           a neighbour. Shapes and heights differ, so the static segmenter already
+    ///           finds most objects: the easy regime. Each push moves one object of a
+    ///           touching pair across the line joining the pair.
+    ///   packed  4-6 look-alike boxes of one size (4-7 cm footprint), one height and one
+    ///           texture, flush in a grid (2x2, 1x4, 1x5, 2x3, 2x2+1, ...) with 0.2-0.8 mm
+    ///           gaps, or (one scene in four) same-height cans in rows or hex-packed. At
+    ///           push 0 nothing tells them apart, so a static segmenter merges them: the
+    ///           regime RISeg exists for (the paper's static model found under 20 % of
+    ///           objects). Each push shears the pack: an outer object, row or column slides
+    ///           along a face it shares with a neighbour; the rest stays.
+    ///   mixed   a flush pack of 2-4 look-alike boxes plus 1-3 loose objects against or
+    ///           near it; pushes shear as in packed.
     ///
     /// Output layout (the scene folder format every riseg command reads):
     ///
@@ -63,13 +80,17 @@ enum Command {
     ///   OUT/scene_000/label/000000.png   16-bit instance ids, 0 = table (ground truth)
     ///   OUT/scene_000/flow/000000.flo    exact flow from frame t to t+1 (Middlebury)
     ///   OUT/scene_000/actions.json       the pushes, in the camera frame
+    ///   OUT/scene_000/poses.json         every object's pose in every frame, world
+    ///                                    (table) frame, z up: {"frames": [[{"label": 1,
+    ///                                    "translation_m": [x, y, z], "rotation_xyzw":
+    ///                                    [qx, qy, qz, qw]}, ...], ...]}
     ///   OUT/preview/scene_000.png        colour | depth | labels, initial over last
     ///                                    frame, pushes drawn as arrows
     ///
     /// Scenes are written to a hidden folder and renamed when complete; existing scene
     /// folders are never overwritten.
     ///
-    /// Example: riseg gen --scenes 23 --seed 1 --out data/sim23
+    /// Example: riseg gen --scenes 23 --seed 1 --layout packed --out data/packed23
     #[command(verbatim_doc_comment)]
     Gen(GenArgs),
     /// Segment one RGB-D frame with the built-in classical segmenter (no model weights)
@@ -164,7 +185,8 @@ struct RunArgs {
 const DEMO_HELP: &str = "\
 Run the whole loop on a simulated scene and write a report (the default command).
 
-A simulated table with touching objects is seen by a D415-like RGB-D camera; the built-in \
+A simulated table with touching objects (by default a packed scene of look-alike boxes or \
+cans, --layout; see `riseg gen --help`) is seen by a D415-like RGB-D camera; the built-in \
 static segmenter merges some of them. The loop of Algorithm 1 then runs: FindAction picks \
 a push between two certain regions with an uncertain one between them, the simulated arm \
 makes it (the pixel push becomes a metric push in the camera frame, then a level push in \
@@ -182,9 +204,13 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
 
 #[derive(Debug, Args)]
 struct DemoArgs {
-    /// Simulated scene seed.
-    #[arg(long, default_value_t = riseg::demo::DEMO_SEED)]
-    seed: u64,
+    /// Scene family (see `riseg gen --help`).
+    #[arg(long, value_enum, default_value_t = LayoutArg::Packed)]
+    layout: LayoutArg,
+    /// Simulated scene seed [default: a typical scene of the family: 2 loose, 0 packed, 0
+    /// mixed].
+    #[arg(long)]
+    seed: Option<u64>,
     /// Output folder (created if missing; earlier demo files in it are replaced).
     #[arg(long, default_value = "riseg-demo")]
     out: PathBuf,
@@ -193,8 +219,30 @@ struct DemoArgs {
 impl Default for DemoArgs {
     fn default() -> Self {
         Self {
-            seed: riseg::demo::DEMO_SEED,
+            layout: LayoutArg::Packed,
+            seed: None,
             out: PathBuf::from("riseg-demo"),
+        }
+    }
+}
+
+/// `--layout`: the simulator's scene families by name.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum LayoutArg {
+    /// Mixed shapes touching; the static segmenter finds most objects.
+    Loose,
+    /// Look-alike boxes or cans packed flush; the static segmenter merges them.
+    Packed,
+    /// A flush pack of look-alike boxes with loose objects against it.
+    Mixed,
+}
+
+impl LayoutArg {
+    const fn layout(self) -> Layout {
+        match self {
+            Self::Loose => Layout::Loose,
+            Self::Packed => Layout::Packed,
+            Self::Mixed => Layout::Mixed,
         }
     }
 }
@@ -204,12 +252,12 @@ The paper's experiment (its Table 1) on simulated scenes: static segmenter, RISe
 motion ceiling.
 
 Each scene is a table with 4-6 touching objects (the scenes of `riseg gen` with the same \
-seed). On each, the loop of Algorithm 1 runs with the built-in segmenter and optical \
-flow: FindAction picks a push from the static heatmap, the simulated arm makes it, \
-UpdateMask corrects the mask; at most 3 pushes, fewer when no push qualifies. Every frame \
-is scored against the simulator's ground truth three times: the static segmentation of \
-that frame, RISeg's accumulated mask (at push 0 they are the same), and the motion \
-ceiling.
+seed and --layout: loose by default, packed or mixed; see `riseg gen --help`). On each, \
+the loop of Algorithm 1 runs with the built-in segmenter and optical flow: FindAction \
+picks a push from the static heatmap, the simulated arm makes it, UpdateMask corrects the \
+mask; at most 3 pushes, fewer when no push qualifies. Every frame is scored against the \
+simulator's ground truth three times: the static segmentation of that frame, RISeg's \
+accumulated mask (at push 0 they are the same), and the motion ceiling.
 
 The motion ceiling is the best mask a method that starts from the static segmentation \
 and splits by motion can reach after the pushes so far: the ground truth, with two \
@@ -238,6 +286,9 @@ struct BenchArgs {
     /// Dataset seed (scene i uses the simulator seed `riseg gen` derives from it).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Scene family (see `riseg gen --help`).
+    #[arg(long, value_enum, default_value_t = LayoutArg::Loose)]
+    layout: LayoutArg,
     /// Also write the report as JSON: {"static": [ROW..], "riseg": [ROW..], "ceiling":
     /// [ROW..], "timing_ms": {..}}, ROW as in `riseg eval --json`. Written atomically.
     #[arg(long, value_name = "FILE")]
@@ -466,6 +517,9 @@ struct GenArgs {
     /// Pushes per scene; each scene has pushes + 1 frames.
     #[arg(long, default_value_t = 3)]
     pushes: usize,
+    /// Scene family: loose, packed or mixed (described above).
+    #[arg(long, value_enum, default_value_t = LayoutArg::Loose)]
+    layout: LayoutArg,
 }
 
 #[derive(Debug, Args)]
@@ -526,14 +580,15 @@ fn run_gen(args: &GenArgs) -> anyhow::Result<()> {
         seed,
         out,
         pushes,
+        layout,
     } = args;
-    let (scenes, seed, pushes) = (*scenes, *seed, *pushes);
+    let (scenes, seed, pushes, layout) = (*scenes, *seed, *pushes, layout.layout());
     let bar = ProgressBar::new(scenes as u64);
     bar.set_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} scenes  {elapsed}  {msg}")
             .context("progress bar template")?,
     );
-    write_dataset(out, scenes, seed, pushes, |i, g| {
+    write_dataset(out, scenes, seed, layout, pushes, |i, g| {
         bar.set_message(format!(
             "{}: {} objects, {} pushes",
             scene_dir_name(i),
@@ -542,10 +597,10 @@ fn run_gen(args: &GenArgs) -> anyhow::Result<()> {
         ));
         bar.inc(1);
     })
-    .with_context(|| format!("generating {scenes} scenes into {}", out.display()))?;
+    .with_context(|| format!("generating {scenes} {layout} scenes into {}", out.display()))?;
     bar.finish();
     println!(
-        "wrote {scenes} scenes to {}; previews in {}",
+        "wrote {scenes} {layout} scenes to {}; previews in {}",
         out.display(),
         out.join(PREVIEW_DIR).display()
     );
@@ -559,16 +614,20 @@ fn run_demo(args: &DemoArgs) -> anyhow::Result<()> {
     );
     bar.enable_steady_tick(core::time::Duration::from_millis(120));
     bar.set_message("frame 0: rendering, segmenting");
-    let report = riseg::demo::run_demo(&args.out, args.seed, |t| {
+    let layout = args.layout.layout();
+    let seed = args
+        .seed
+        .unwrap_or_else(|| riseg::demo::default_seed(layout));
+    let report = riseg::demo::run_demo(&args.out, seed, layout, |t| {
         bar.set_message(format!(
             "frame {t} done; pushing, rendering frame {}",
             t + 1
         ));
     })
-    .with_context(|| format!("demo on simulated scene {}", args.seed))?;
+    .with_context(|| format!("demo on simulated {layout} scene {seed}"))?;
     bar.finish_and_clear();
     println!(
-        "riseg demo: simulated scene {}, {} pushes; {}.",
+        "riseg demo: simulated {layout} scene {}, {} pushes; {}.",
         report.seed,
         report.frames.len().saturating_sub(1),
         riseg::demo::stop_text(&report.stop)
@@ -624,7 +683,10 @@ fn run_recorded(args: &RunArgs) -> anyhow::Result<()> {
 }
 
 fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
-    let cfg = BenchConfig::new(args.scenes, args.seed);
+    let cfg = BenchConfig {
+        layout: args.layout.layout(),
+        ..BenchConfig::new(args.scenes, args.seed)
+    };
     let bar = ProgressBar::new(args.scenes as u64).with_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} scenes  {elapsed}  eta {eta}  {msg}")
             .context("progress bar template")?,
@@ -644,8 +706,9 @@ fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
         .filter(|r| matches!(r.stop, Stop::Refused(_)))
         .count();
     println!(
-        "{} scenes, seed {}; pushes per scene: {}{}",
+        "{} {} scenes, seed {}; pushes per scene: {}{}",
         args.scenes,
+        cfg.layout,
         args.seed,
         results
             .iter()

@@ -12,6 +12,10 @@
 //!     flow/000000.flo     forward flow from frame t to t+1 (optional: ground truth), Middlebury
 //!     actions.json        [{"push": 1, "start_px": [u, v], "start_cam_m": [x, y, z],
 //!                           "direction_cam": [dx, dy, dz], "length_m": 0.02}, ...]
+//!     poses.json          {"frames": [[{"label": 1, "translation_m": [x, y, z],
+//!                           "rotation_xyzw": [qx, qy, qz, qw]}, ...], ...]} (optional:
+//!                          ground truth; every object's pose in the world = table frame,
+//!                          z up, one list per frame)
 //!   scene_001/ ...
 //! ```
 //!
@@ -24,6 +28,10 @@
 //!   `flow/` is optional, and when present holds one `.flo` per push (frames − 1).
 //! - `actions.json` holds one entry per push, numbered `1, 2, …` in order. It may be absent
 //!   only when the scene has a single frame (no pushes).
+//! - `poses.json` is optional; when present it holds one list per frame (`frames[t]` = after
+//!   `t` pushes) of object poses: labels from 1, each once per frame, finite numbers, and
+//!   quaternions of norm within [`POSE_QUATERNION_TOLERANCE`] of 1 (normalised on reading
+//!   unless already unit to `f32` precision, so a written file reads back bit for bit).
 //! - Every image is the size `scene_camera.json` gives.
 //! - Any violation is a [`SceneError`] whose message starts with the offending file or
 //!   folder and says the problem.
@@ -38,7 +46,8 @@ use std::{
     path::{Path, PathBuf},
 };
 
-use riseg_core::Intrinsics;
+use nalgebra::{Quaternion, Translation3, UnitQuaternion};
+use riseg_core::{Intrinsics, Pose};
 use serde::{Deserialize, Serialize};
 
 use crate::imageio::{
@@ -50,6 +59,10 @@ use crate::imageio::{
 pub const CAMERA_FILE: &str = "scene_camera.json";
 /// Pushes file name.
 pub const ACTIONS_FILE: &str = "actions.json";
+/// Ground-truth object poses file name.
+pub const POSES_FILE: &str = "poses.json";
+/// Largest difference of a `poses.json` quaternion's norm from 1.
+pub const POSE_QUATERNION_TOLERANCE: f32 = 1e-3;
 /// Colour frames folder.
 pub const RGB_DIR: &str = "rgb";
 /// Depth frames folder.
@@ -178,6 +191,135 @@ pub struct Scene {
     pub flow: Option<Vec<FlowImage>>,
     /// The pushes, numbered from 1.
     pub actions: Vec<PushAction>,
+    /// Ground-truth object poses, world (table) frame, one list per frame, if known.
+    pub poses: Option<Vec<Vec<ObjectPose>>>,
+}
+
+/// Where one object is: its instance label and its body frame in the world (table) frame,
+/// z up (the simulator's world frame).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObjectPose {
+    /// The object's instance label (as in the label images), from 1.
+    pub label: u16,
+    /// The object's body frame in the world frame, translation in metres.
+    pub world_from_object: Pose,
+}
+
+/// One entry of `poses.json`.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+struct PoseRecord {
+    label: u16,
+    translation_m: [f32; 3],
+    rotation_xyzw: [f32; 4],
+}
+
+/// `poses.json`: `frames[t]` = the poses after `t` pushes.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct PosesFile {
+    frames: Vec<Vec<PoseRecord>>,
+}
+
+impl From<&ObjectPose> for PoseRecord {
+    fn from(p: &ObjectPose) -> Self {
+        let t = p.world_from_object.translation.vector;
+        let q = p.world_from_object.rotation.coords;
+        Self {
+            label: p.label,
+            translation_m: [t.x, t.y, t.z],
+            rotation_xyzw: [q.x, q.y, q.z, q.w],
+        }
+    }
+}
+
+impl PoseRecord {
+    /// The pose, or what is wrong with the record.
+    fn pose(&self) -> Result<ObjectPose, String> {
+        let [x, y, z, w] = self.rotation_xyzw;
+        let finite = self
+            .translation_m
+            .iter()
+            .chain(&self.rotation_xyzw)
+            .all(|v| v.is_finite());
+        if !finite {
+            return Err(format!("object {} has a non-finite value", self.label));
+        }
+        let q = Quaternion::new(w, x, y, z);
+        let norm = q.norm();
+        if (norm - 1.0).abs() > POSE_QUATERNION_TOLERANCE {
+            return Err(format!(
+                "object {}: rotation_xyzw has norm {norm}, not 1",
+                self.label
+            ));
+        }
+        // Unit to f32 precision: kept as written, so written files read back exactly.
+        let rotation = if (norm - 1.0).abs() <= 4.0 * f32::EPSILON {
+            UnitQuaternion::new_unchecked(q)
+        } else {
+            UnitQuaternion::new_normalize(q)
+        };
+        let [tx, ty, tz] = self.translation_m;
+        Ok(ObjectPose {
+            label: self.label,
+            world_from_object: Pose::from_parts(Translation3::new(tx, ty, tz), rotation),
+        })
+    }
+}
+
+/// What is wrong with a pose list of a `frames`-frame scene, if anything.
+fn poses_problem(poses: &[Vec<ObjectPose>], frames: usize) -> Option<String> {
+    if poses.len() != frames {
+        return Some(format!(
+            "{} frames of poses, expected {frames} (one per frame in rgb/)",
+            poses.len()
+        ));
+    }
+    for (t, frame) in poses.iter().enumerate() {
+        for (i, p) in frame.iter().enumerate() {
+            if p.label == 0 {
+                return Some(format!("frame {t}: label 0 (objects are labelled from 1)"));
+            }
+            if frame[..i].iter().any(|q| q.label == p.label) {
+                return Some(format!("frame {t}: object {} listed twice", p.label));
+            }
+            let iso = &p.world_from_object;
+            let finite = iso
+                .translation
+                .vector
+                .iter()
+                .chain(iso.rotation.coords.iter())
+                .all(|v| v.is_finite());
+            if !finite {
+                return Some(format!(
+                    "frame {t}: object {} has a non-finite value",
+                    p.label
+                ));
+            }
+        }
+    }
+    None
+}
+
+/// Reads and checks `poses.json` of a `frames`-frame scene.
+fn read_poses(path: &Path, frames: usize) -> Result<Vec<Vec<ObjectPose>>, SceneError> {
+    let file: PosesFile = read_json(path)?;
+    let poses = file
+        .frames
+        .iter()
+        .enumerate()
+        .map(|(t, records)| {
+            records
+                .iter()
+                .map(|r| {
+                    r.pose()
+                        .map_err(|why| invalid(path, format!("frame {t}: {why}")))
+                })
+                .collect::<Result<Vec<_>, _>>()
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    match poses_problem(&poses, frames) {
+        Some(reason) => Err(invalid(path, reason)),
+        None => Ok(poses),
+    }
 }
 
 /// Why a scene folder could not be read or written. The message starts with the file or
@@ -441,6 +583,13 @@ impl Scene {
         };
         check_actions(&actions_path, &actions, n - 1)?;
 
+        let poses_path = dir.join(POSES_FILE);
+        let poses = if poses_path.exists() {
+            Some(read_poses(&poses_path, n)?)
+        } else {
+            None
+        };
+
         let frame = |sub: &Path, t: usize, ext: &str| sub.join(frame_file_name(t, ext));
         let rgb = (0..n)
             .map(|t| read_sized(&frame(&rgb_dir, t, "png"), &camera, read_rgb8))
@@ -473,6 +622,7 @@ impl Scene {
             labels,
             flow,
             actions,
+            poses,
         })
     }
 
@@ -531,7 +681,11 @@ impl Scene {
                 &mut flow.iter().map(|i| (i.width(), i.height())),
             )?;
         }
-        check_actions(&dir.join(ACTIONS_FILE), &self.actions, n - 1)
+        check_actions(&dir.join(ACTIONS_FILE), &self.actions, n - 1)?;
+        match self.poses.as_deref().and_then(|p| poses_problem(p, n)) {
+            Some(reason) => Err(invalid(&dir.join(POSES_FILE), reason)),
+            None => Ok(()),
+        }
     }
 
     /// Writes the scene to the folder `dir`, which must not exist yet; its parent must.
@@ -584,6 +738,15 @@ impl Scene {
         json(&camera_path, serde_json::to_vec_pretty(&self.camera))?;
         let actions_path = root.join(ACTIONS_FILE);
         json(&actions_path, serde_json::to_vec_pretty(&self.actions))?;
+        if let Some(poses) = &self.poses {
+            let file = PosesFile {
+                frames: poses
+                    .iter()
+                    .map(|frame| frame.iter().map(PoseRecord::from).collect())
+                    .collect(),
+            };
+            json(&root.join(POSES_FILE), serde_json::to_vec(&file))?;
+        }
 
         let rgb_dir = root.join(RGB_DIR);
         mkdir(&rgb_dir)?;

@@ -182,6 +182,7 @@ fn write_scene(dir: &Path) {
         labels: None,
         flow: None,
         actions: Vec::new(),
+        poses: None,
     };
     scene.write(dir).expect("test setup");
 }

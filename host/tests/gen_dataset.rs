@@ -1,6 +1,7 @@
 //! `riseg gen` end to end: determinism, the benchmark contract of every scene, and the
-//! exactness of the ground-truth flow. The dataset (3 scenes, seed 1, 3 pushes) is made once
-//! per test binary and shared.
+//! exactness of the ground-truth flow. The dataset (3 loose scenes, seed 1, 3 pushes) is
+//! made once per test binary and shared; the other scene families are checked on a scene
+//! each.
 
 #![allow(
     clippy::unwrap_used,
@@ -17,8 +18,8 @@ use std::{
 use riseg::{
     generate::{GeneratedScene, generate_scene, scene_dir_name, scene_seed, write_dataset},
     imageio::{FlowImage, Gray16Image, RgbImage},
-    scene::{Scene, list_scenes},
-    sim::TABLE_HALF_EXTENTS_M,
+    scene::{ObjectPose, Scene, list_scenes},
+    sim::{Layout, TABLE_HALF_EXTENTS_M},
 };
 
 const SCENES: usize = 3;
@@ -43,7 +44,10 @@ fn dataset() -> &'static Dataset {
     DATASET.get_or_init(|| {
         let dir = fresh_dir("a");
         let mut generated = Vec::new();
-        write_dataset(&dir, SCENES, SEED, PUSHES, |_, g| generated.push(g.clone())).unwrap();
+        write_dataset(&dir, SCENES, SEED, Layout::Loose, PUSHES, |_, g| {
+            generated.push(g.clone());
+        })
+        .unwrap();
         Dataset { dir, generated }
     })
 }
@@ -70,10 +74,11 @@ fn all_files(root: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
 fn same_seed_gives_identical_files() {
     let first = all_files(&dataset().dir);
     let again = fresh_dir("b");
-    write_dataset(&again, SCENES, SEED, PUSHES, |_, _| {}).unwrap();
+    write_dataset(&again, SCENES, SEED, Layout::Loose, PUSHES, |_, _| {}).unwrap();
     let second = all_files(&again);
-    // 3 scenes x (camera + actions + 4 rgb + 4 depth + 4 label + 3 flow) + 3 previews.
-    assert_eq!(first.len(), SCENES * 17 + SCENES, "{:?}", first.keys());
+    // 3 scenes x (camera + actions + poses + 4 rgb + 4 depth + 4 label + 3 flow) + 3
+    // previews.
+    assert_eq!(first.len(), SCENES * 18 + SCENES, "{:?}", first.keys());
     assert_eq!(
         first.keys().collect::<Vec<_>>(),
         second.keys().collect::<Vec<_>>()
@@ -86,7 +91,7 @@ fn same_seed_gives_identical_files() {
         );
     }
     // And the seed matters: another seed gives another initial image.
-    let other = generate_scene(scene_seed(SEED + 1, 0), 0).unwrap();
+    let other = generate_scene(scene_seed(SEED + 1, 0), Layout::Loose, 0).unwrap();
     let own = Scene::read(&dataset().dir.join(scene_dir_name(0))).unwrap();
     assert_ne!(other.scene.rgb[0], own.rgb[0]);
 }
@@ -191,7 +196,7 @@ fn generated_scenes_meet_the_contract() {
             );
         }
         // No object leaves the table: centres over the table top, resting on it.
-        for (t, poses) in generated.object_poses.iter().enumerate() {
+        for (t, poses) in scene.poses.as_ref().unwrap().iter().enumerate() {
             assert_eq!(poses.len(), objects.len());
             for p in poses {
                 let c = p.world_from_object.translation.vector;
@@ -205,6 +210,50 @@ fn generated_scenes_meet_the_contract() {
                     p.label
                 );
             }
+        }
+    }
+}
+
+/// Largest horizontal displacement of each object between two pose lists, metres.
+fn moved_m(before: &[ObjectPose], after: &[ObjectPose]) -> Vec<f32> {
+    before
+        .iter()
+        .zip(after)
+        .map(|(a, b)| {
+            assert_eq!(a.label, b.label);
+            let d = b.world_from_object.translation.vector - a.world_from_object.translation.vector;
+            d.xy().norm()
+        })
+        .collect()
+}
+
+#[test]
+fn packed_and_mixed_scenes_are_deterministic_and_their_pushes_shear() {
+    let seed = scene_seed(SEED, 0);
+    for layout in [Layout::Packed, Layout::Mixed] {
+        let g = generate_scene(seed, layout, 2).unwrap();
+        let again = generate_scene(seed, layout, 2).unwrap();
+        assert_eq!(g.scene, again.scene, "{layout}: same seed, same scene");
+        assert_ne!(
+            g.scene.rgb[0],
+            generate_scene(seed, Layout::Loose, 0).unwrap().scene.rgb[0],
+            "{layout}: the family matters"
+        );
+        let dir = fresh_dir(layout.name());
+        g.scene.write(&dir).unwrap();
+        assert_eq!(Scene::read(&dir).unwrap(), g.scene, "{layout}: read back");
+
+        let labels = g.scene.labels.as_ref().unwrap();
+        assert!((4..=6).contains(&ids(&labels[0]).len()), "{layout}");
+        // Every push moves part of the objects by most of its 2 cm and leaves some where
+        // they were.
+        let poses = g.scene.poses.as_ref().unwrap();
+        assert_eq!(poses.len(), 3);
+        for t in 0..2 {
+            let moved = moved_m(&poses[t], &poses[t + 1]);
+            println!("{layout} push {}: moved {moved:?} m", t + 1);
+            assert!(moved.iter().any(|&m| m > 0.01), "{layout} push {}", t + 1);
+            assert!(moved.iter().any(|&m| m < 0.002), "{layout} push {}", t + 1);
         }
     }
 }
@@ -264,14 +313,15 @@ fn warping_back_by_ground_truth_flow_reproduces_the_previous_frame() {
         let (labels, flow) = (s.labels.as_ref().unwrap(), s.flow.as_ref().unwrap());
         for t in 0..s.frames() - 1 {
             let turned_deg = |label: u16| {
-                let pose = |poses: &[riseg::sim::ObjectPose]| {
+                let pose = |poses: &[ObjectPose]| {
                     poses
                         .iter()
                         .find(|p| p.label == label)
                         .unwrap()
                         .world_from_object
                 };
-                let (a, b) = (pose(&g.object_poses[t]), pose(&g.object_poses[t + 1]));
+                let poses = s.poses.as_ref().unwrap();
+                let (a, b) = (pose(&poses[t]), pose(&poses[t + 1]));
                 (b.rotation * a.rotation.inverse()).angle().to_degrees()
             };
             let (now, next) = (&s.rgb[t], &s.rgb[t + 1]);

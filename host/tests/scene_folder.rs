@@ -11,15 +11,17 @@ use std::{
     path::{Path, PathBuf},
 };
 
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use riseg::{
     imageio::{FlowImage, Gray16Image, RgbImage, write_gray16},
-    scene::{PushAction, Scene, SceneCamera, SceneError, list_scenes},
+    scene::{ObjectPose, PushAction, Scene, SceneCamera, SceneError, list_scenes},
 };
+use riseg_core::Pose;
 
 const W: u32 = 8;
 const H: u32 = 6;
 
-/// A valid 3-frame scene (2 pushes) with labels and flow.
+/// A valid 3-frame scene (2 pushes) with labels, flow and the poses of two objects.
 fn small_scene() -> Scene {
     let frames = 3;
     Scene {
@@ -57,6 +59,24 @@ fn small_scene() -> Scene {
                 length_m: 0.02,
             })
             .collect(),
+        poses: Some(
+            (0..frames)
+                .map(|t| {
+                    (1..=2_u16)
+                        .map(|label| ObjectPose {
+                            label,
+                            world_from_object: Pose::from_parts(
+                                Translation3::new(0.01 * t as f32, -0.05 * f32::from(label), 0.02),
+                                UnitQuaternion::from_axis_angle(
+                                    &Vector3::z_axis(),
+                                    0.3 * t as f32 + f32::from(label),
+                                ),
+                            ),
+                        })
+                        .collect()
+                })
+                .collect(),
+        ),
     }
 }
 
@@ -92,12 +112,23 @@ fn scene_round_trips_and_is_written_atomically() {
     let e = bad.write(&root.join("scene_001")).unwrap_err();
     assert!(e.to_string().contains("actions.json"), "{e}");
     assert!(!root.join("scene_001").exists());
+    let mut bad = scene.clone();
+    if let Some(poses) = &mut bad.poses {
+        poses[1][0].label = 0;
+    }
+    let e = bad.write(&root.join("scene_001")).unwrap_err();
+    assert!(
+        e.to_string().contains("poses.json") && e.to_string().contains("label 0"),
+        "{e}"
+    );
+    assert!(!root.join("scene_001").exists());
     assert_eq!(fs::read_dir(&root).unwrap().count(), 1);
 
     // A scene without the optional parts, and a single frame without actions.json.
     let mut bare = scene.clone();
     bare.labels = None;
     bare.flow = None;
+    bare.poses = None;
     bare.write(&root.join("scene_002")).unwrap();
     assert_eq!(Scene::read(&root.join("scene_002")).unwrap(), bare);
     let mut single = bare;
@@ -322,6 +353,86 @@ fn every_bad_folder_is_an_error_naming_the_file() {
         "scene_camera.json",
         "focal lengths must be positive",
     );
+    // Bad poses.json: syntax, frame count, labels, numbers, quaternions.
+    let one_pose = |label: i64, t: &str, q: &str| {
+        format!(r#"{{"label": {label}, "translation_m": {t}, "rotation_xyzw": {q}}}"#)
+    };
+    let poses_of = |frames: &[String]| format!(r#"{{"frames": [{}]}}"#, frames.join(", "));
+    let good = one_pose(1, "[0, 0, 0.02]", "[0, 0, 0, 1]");
+    let frame = |objects: &[&String]| {
+        format!(
+            "[{}]",
+            objects
+                .iter()
+                .map(|s| s.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    let three = |last: String| poses_of(&[frame(&[&good]), frame(&[&good]), last]);
+    let cases = [
+        ("poses_json", "{\"frames\": [".to_owned(), "malformed JSON"),
+        (
+            "poses_field",
+            r#"{"frame": []}"#.to_owned(),
+            "missing field `frames`",
+        ),
+        (
+            "poses_frames",
+            poses_of(&[frame(&[&good]), frame(&[&good])]),
+            "2 frames of poses, expected 3",
+        ),
+        (
+            "poses_label0",
+            three(frame(&[&one_pose(0, "[0, 0, 0]", "[0, 0, 0, 1]")])),
+            "frame 2: label 0",
+        ),
+        (
+            "poses_twice",
+            three(frame(&[&good, &good])),
+            "frame 2: object 1 listed twice",
+        ),
+        (
+            "poses_norm",
+            three(frame(&[&one_pose(1, "[0, 0, 0]", "[0, 0, 0.5, 1]")])),
+            "frame 2: object 1: rotation_xyzw has norm 1.118",
+        ),
+        (
+            "poses_infinite",
+            three(frame(&[&one_pose(1, "[1e39, 0, 0]", "[0, 0, 0, 1]")])),
+            "frame 2: object 1 has a non-finite value",
+        ),
+        (
+            "poses_short",
+            three(frame(&[&one_pose(1, "[0, 0]", "[0, 0, 0, 1]")])),
+            "malformed JSON",
+        ),
+    ];
+    for (case, text, problem) in cases {
+        assert_bad(
+            &root,
+            case,
+            |d| write(d.join("poses.json"), text.as_bytes()),
+            "poses.json",
+            problem,
+        );
+    }
+    // A quaternion a little off unit length is accepted and normalised.
+    let dir = root.join("poses_almost_unit");
+    small_scene().write(&dir).unwrap();
+    write(
+        dir.join("poses.json"),
+        three(frame(&[&one_pose(
+            2,
+            "[0, 0, 0]",
+            "[0, 0, 0.0006, 1.0003]",
+        )]))
+        .as_bytes(),
+    );
+    let read = Scene::read(&dir).unwrap().poses.unwrap();
+    let q = read[2][0].world_from_object.rotation.coords;
+    assert!((q.norm() - 1.0).abs() < 1e-6, "{q:?}");
+
     // The folder itself.
     let e = Scene::read(&root.join("nowhere")).unwrap_err().to_string();
     assert!(e.contains("nowhere") && e.contains("not found"), "{e}");

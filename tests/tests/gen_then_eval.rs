@@ -1,13 +1,16 @@
 //! A simulated dataset from `riseg gen`, scored against itself by `riseg eval`'s library
 //! code: every number must be 100, on every push index.
 
-use riseg::{eval, generate::write_dataset};
+use riseg::{eval, generate::write_dataset, sim::Layout};
 
 #[test]
 fn generated_dataset_against_itself_scores_100_everywhere() {
     let dir = tempfile::tempdir().expect("temp dir");
     let mut objects = Vec::new();
-    write_dataset(dir.path(), 1, 7, 2, |_, scene| objects.push(scene.objects)).expect("gen");
+    write_dataset(dir.path(), 1, 7, Layout::Loose, 2, |_, scene| {
+        objects.push(scene.objects);
+    })
+    .expect("gen");
     assert_eq!(objects.len(), 1);
     let pairs = eval::find_frame_pairs(dir.path(), dir.path()).expect("pairs");
     assert_eq!(pairs.len(), 3, "initial frame and two pushes");

@@ -12,7 +12,7 @@ use riseg::{
     replay::{InputDirs, replay_scene, run_scene},
     robot::{PushLimits, PushRefused, Robot as _},
     segment::{ClassicalSegmenter, SegmenterParams},
-    sim::{SimRig, SimScene},
+    sim::{Layout, SimRig, SimScene},
     tracker::Tracker,
 };
 use riseg_core::Config;
@@ -51,7 +51,7 @@ fn a_three_scene_bench_improves_on_the_static_segmenter_and_repeats_exactly() {
 
 #[test]
 fn run_on_a_recorded_scene_equals_the_in_memory_replay_of_its_frames() {
-    let generated = generate_scene(11, 2).expect("scene");
+    let generated = generate_scene(11, Layout::Loose, 2).expect("scene");
     let scene = &generated.scene;
     let dir = tempfile::tempdir().expect("temp dir");
     let scene_dir = dir.path().join("data").join("scene_000");

@@ -5,6 +5,12 @@
 //! kinematic body moved through the simulation, then the objects settle); images are ray
 //! cast against the same collider shapes with parry3d.
 //!
+//! The objects come in three scene families ([`Layout`], [`SimConfig::layout`]): `Loose`
+//! (mixed shapes touching, the default), `Packed` (look-alike boxes or cans flush in a grid,
+//! the regime where a static segmenter merges everything) and `Mixed` (a pack with loose
+//! objects against it). Every family uses the same camera, renderer and sensor noise; the
+//! family also picks the scripted pushes of [`SimScene::plan_push`].
+//!
 //! # Frames
 //! - **world** (= table = robot base): origin at the centre of the table top, z up. Pushes
 //!   ([`SimScene::push`]) and object poses are in this frame.
@@ -38,18 +44,22 @@ mod flow;
 mod layout;
 mod render;
 mod rig;
+mod shear;
 
 use core::fmt;
 
 use nalgebra::{Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
 use parry3d::{math::Vector as GlamVec, query::Ray, shape::Ball};
 use rapier3d::prelude::{
-    ColliderBuilder, ColliderHandle, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
+    Collider, ColliderBuilder, ColliderHandle, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
 };
 use riseg_core::{Intrinsics, Pose, rng::Pcg32};
 
+/// Where one object is: its label (as in [`RgbdFrame::labels`]) and body frame in the world
+/// frame. Defined with the scene folder format, which stores it (`poses.json`).
+pub use crate::scene::ObjectPose;
 pub use flow::{UNKNOWN_FLOW, ground_truth_flow};
-pub use layout::ObjectShape;
+pub use layout::{Layout, ObjectShape};
 pub use rig::{SIM_MAX_PUSH_LEN_M, SIM_MAX_TOOL_HEIGHT_M, SimCamera, SimRig, SimRobot};
 
 use crate::imageio::{DepthImage, Gray16Image, RgbImage};
@@ -101,6 +111,9 @@ pub struct SimConfig {
     pub depth_edge_step_m: f32,
     /// Probability that a depth-edge pixel has no reading.
     pub depth_edge_dropout: f32,
+    /// Which scene family to draw ([`Layout`]); the object counts and sizes above bound
+    /// every family.
+    pub layout: Layout,
     /// Radius of the spherical pusher, metres.
     pub pusher_radius_m: f32,
     /// Pusher speed along the push, metres per second.
@@ -113,7 +126,8 @@ pub struct SimConfig {
 
 impl SimConfig {
     /// RealSense D415-like colour camera at 640x480 (fx = fy = 615), 0.60 m above the
-    /// table, tilted 15°; 4-6 objects of 3-7 cm; a 5 mm pusher at 5 cm/s.
+    /// table, tilted 15°; 4-6 objects of 3-7 cm in a [`Layout::Loose`] scene; a 5 mm pusher
+    /// at 5 cm/s.
     pub const D415: Self = Self {
         width: 640,
         height: 480,
@@ -133,11 +147,19 @@ impl SimConfig {
         depth_sigma_at_0_6_m: 0.001,
         depth_edge_step_m: 0.01,
         depth_edge_dropout: 0.7,
+        layout: Layout::Loose,
         pusher_radius_m: 0.005,
         push_speed_m_per_s: 0.05,
         physics_dt_s: 1.0 / 240.0,
         settle_max_s: 3.0,
     };
+
+    /// This configuration drawing scenes of `layout`.
+    #[must_use]
+    pub const fn with_layout(mut self, layout: Layout) -> Self {
+        self.layout = layout;
+        self
+    }
 
     fn check(&self) -> Result<(), SimError> {
         let bad = |what: &str| Err(SimError::BadConfig(what.to_owned()));
@@ -216,15 +238,6 @@ pub enum SimError {
     UnknownLabel(u16),
 }
 
-/// Where one object is.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ObjectPose {
-    /// The object's instance label (as in [`RgbdFrame::labels`]).
-    pub label: u16,
-    /// The object's body frame in the world frame.
-    pub world_from_object: Pose,
-}
-
 /// What one object is.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ObjectInfo {
@@ -281,6 +294,8 @@ pub struct RgbdFrame {
 
 struct SimObject {
     info: ObjectInfo,
+    /// Mixed with the scene seed into the texture seed (look-alike objects share it).
+    texture_key: u64,
     body: RigidBodyHandle,
     collider: ColliderHandle,
 }
@@ -328,6 +343,7 @@ impl SimScene {
     pub fn with_config(seed: u64, config: SimConfig) -> Result<Self, SimError> {
         config.check()?;
         let spec = LayoutSpec {
+            layout: config.layout,
             min_objects: config.min_objects,
             max_objects: config.max_objects,
             min_size_m: config.min_object_size_m,
@@ -354,6 +370,12 @@ impl SimScene {
         // The world is in centimetres: rapier scales its tolerances by this.
         params.length_unit = CM_PER_M;
         params.num_solver_iterations = 8;
+        // Rapier reuses a contact (frozen normal and anchors) until the pair's relative pose
+        // drifts by its recycle distance, 5 cm here. A box sliding past the corner of its
+        // diagonal neighbour in a pack (0.3-1.1 mm away) then meets a frozen corner-to-corner
+        // normal and drags the neighbour along; packs need contacts recomputed every step.
+        // Loose scenes keep recycling so that they stay the scenes they were.
+        params.contact_recycling = config.layout == Layout::Loose;
 
         let half_thickness_cm = 0.5 * TABLE_THICKNESS_M * CM_PER_M;
         let (_, table) = world.insert(
@@ -389,6 +411,7 @@ impl SimScene {
                         shape: p.shape,
                         albedo: p.albedo,
                     },
+                    texture_key: p.texture_key,
                     body,
                     collider,
                 }
@@ -529,7 +552,7 @@ impl SimScene {
                     world_from_surface_cm: *c.position(),
                     label: o.info.label,
                     albedo: o.info.albedo,
-                    texture_seed: mix64(self.seed ^ (u64::from(o.info.label) << 40)) as u32,
+                    texture_seed: mix64(self.seed ^ o.texture_key) as u32,
                     texture_cell_cm: 0.6,
                     texture_contrast: 0.18,
                 });
@@ -652,12 +675,30 @@ impl SimScene {
         Ok(())
     }
 
-    /// A scripted push: one object of a touching pair is pushed across the line joining
-    /// the pair's centres, starting 2 mm before its surface (at its centre's height, at
-    /// most 3 cm), for `length_m`. The candidate is drawn with the scene's generator among
-    /// all touching pairs, both objects of each and both directions, keeping those whose
-    /// start leaves the pusher clear of every object. `None` if no candidate qualifies.
+    /// A scripted push for `riseg gen`, drawn with the scene's generator among the
+    /// candidates of the scene's [`Layout`]; `None` if no candidate qualifies. Every
+    /// candidate's pusher starts 2 mm before the pushed object's surface on a line through
+    /// its centre, at its centre's height (at most 3 cm), clear of every object, and
+    /// travels `length_m`.
+    /// - [`Layout::Loose`]: one object of a touching pair is pushed across the line joining
+    ///   the pair's centres (all touching pairs, both objects of each, both directions).
+    /// - [`Layout::Packed`], [`Layout::Mixed`]: the push shears the pack. A box is pushed
+    ///   along one of its face normals from a free face, any other shape across the line to
+    ///   a touching neighbour; kept are the pushes whose carried objects (the pushed one and,
+    ///   transitively, every object a carried one would run into by more than 1 mm if it
+    ///   moved rigidly along the push) are not all of them and touch one that stays. Part of
+    ///   the objects slides along a face it shares with the rest, which stays.
     pub fn plan_push(&mut self, length_m: f32) -> Option<Push> {
+        let candidates = match self.config.layout {
+            Layout::Loose => self.across_pushes(length_m),
+            Layout::Packed | Layout::Mixed => self.shear_pushes(length_m),
+        };
+        let n = u32::try_from(candidates.len()).ok().filter(|&n| n > 0)?;
+        candidates.get(self.rng.below(n) as usize).copied()
+    }
+
+    /// The loose family's candidates: see [`SimScene::plan_push`].
+    fn across_pushes(&self, length_m: f32) -> Vec<Push> {
         let mut candidates = Vec::new();
         for (a, b) in self.touching_pairs(TOUCH_GAP_M) {
             for (pushed, other) in [(a, b), (b, a)] {
@@ -666,31 +707,41 @@ impl SimScene {
                 }
             }
         }
-        let n = u32::try_from(candidates.len()).ok().filter(|&n| n > 0)?;
-        candidates.get(self.rng.below(n) as usize).copied()
+        candidates
+    }
+
+    fn collider_of(&self, label: u16) -> Option<&Collider> {
+        let o = self.objects.iter().find(|o| o.info.label == label)?;
+        self.world.colliders.get(o.collider)
     }
 
     fn push_across(&self, pushed: u16, other: u16, sign: f32, length_m: f32) -> Option<Push> {
-        let collider = |label: u16| {
-            let o = self.objects.iter().find(|o| o.info.label == label)?;
-            self.world.colliders.get(o.collider)
-        };
-        let (c_pushed, c_other) = (collider(pushed)?, collider(other)?);
-        let (p, q) = (
-            c_pushed.position().translation,
-            c_other.position().translation,
-        );
-        let line = GlamVec::new(q.x - p.x, q.y - p.y, 0.0);
-        let dir = GlamVec::new(-line.y, line.x, 0.0).try_normalize()? * sign;
+        let (c_pushed, c_other) = (self.collider_of(pushed)?, self.collider_of(other)?);
+        let dir = across(c_pushed, c_other)? * sign;
+        let start = self.push_start(c_pushed, dir)?;
+        Some(Push {
+            start_world: point_from_sim(start),
+            direction_world: dir_from_sim(dir),
+            length_m,
+            target: pushed,
+        })
+    }
+
+    /// Where the pusher's centre starts to push `pushed` along `dir` (engine frame, unit,
+    /// horizontal): 2 mm before the surface on the line through the centre, at the centre's
+    /// height (at most 3 cm). `None` if the pusher there is not clear of every object (by
+    /// 1 mm), e.g. because a neighbour covers that face.
+    fn push_start(&self, pushed: &Collider, dir: GlamVec) -> Option<GlamVec> {
+        let p = pushed.position().translation;
         // Engine side: centimetres.
         let r_cm = self.config.pusher_radius_m * CM_PER_M;
         let height_cm = p.z.clamp(r_cm + 0.2, 3.0);
         // Where the line through the centre (at push height) enters the object.
         let aim = GlamVec::new(p.x, p.y, height_cm);
         let ray = Ray::new(aim - dir * 30.0, dir);
-        let toi_cm = c_pushed
+        let toi_cm = pushed
             .shape()
-            .cast_ray(c_pushed.position(), &ray, 30.0, true)?;
+            .cast_ray(pushed.position(), &ray, 30.0, true)?;
         let start = ray.point_at(toi_cm) - dir * (r_cm + 0.2);
         let pusher = Ball::new(r_cm);
         let pusher_pose = parry3d::math::Pose::from_translation(start);
@@ -700,13 +751,16 @@ impl SimScene {
                     .is_ok_and(|d| d.distance > 0.1)
             })
         });
-        clear.then(|| Push {
-            start_world: point_from_sim(start),
-            direction_world: dir_from_sim(dir),
-            length_m,
-            target: pushed,
-        })
+        clear.then_some(start)
     }
+}
+
+/// The horizontal unit direction across the line from `a`'s centre to `b`'s (turned +90°
+/// about z), engine frame; `None` if the centres are on one vertical.
+fn across(a: &Collider, b: &Collider) -> Option<GlamVec> {
+    let (p, q) = (a.position().translation, b.position().translation);
+    let line = GlamVec::new(q.x - p.x, q.y - p.y, 0.0);
+    GlamVec::new(-line.y, line.x, 0.0).try_normalize()
 }
 
 #[cfg(test)]

@@ -11,8 +11,11 @@
 //!   least [`Config::frame_min_side_m`] apart; the second point is the farthest such
 //!   sample, the third the one that makes the largest triangle. Triangles whose angle at
 //!   the origin has a sine below [`Config::frame_min_sin`] are not used.
-//! - Points are tracked by the flow at their pixel; depth at `t+1` is read bilinearly at
-//!   the tracked position. A frame with a missing reading at `t+1` (no depth, a depth edge,
+//! - Points are tracked by the flow at their pixel. Depth at `t` (at the pixel) and at
+//!   `t+1` (at the tracked position) is denoised by a local plane fit over a small window
+//!   (`local_depth`): a frame's rotation comes from millimetre depth differences across
+//!   a few centimetres, so raw single-pixel readings (about 1 mm noise at 0.6 m) would
+//!   give a still object a twist as large as a push's. A frame with a missing reading at `t+1` (no depth, a depth edge,
 //!   outside the image, non-finite flow) is dropped, not guessed, and so is a frame whose
 //!   triangle changes a side by more than [`Config::frame_rigid_tol_m`] (not rigid).
 //! - The space frame is fixed at the centroid of the sampled points at `t` with the camera's
@@ -285,14 +288,9 @@ fn sample_pixels(input: &MotionInput<'_>, cfg: &Config, out: &mut [FrameSample])
     for_each_eligible(input, |x, y, label, z| {
         if rank == next {
             if let Some(slot) = out.get_mut(taken as usize) {
-                *slot = track(
-                    input,
-                    cfg,
-                    x,
-                    y,
-                    label,
-                    k.back_project(x as Real, y as Real, z),
-                );
+                let (u, v) = (x as Real, y as Real);
+                let z = local_depth(&input.depth_t, u, v, cfg).unwrap_or(z);
+                *slot = track(input, cfg, x, y, label, k.back_project(u, v, z));
             }
             taken += 1;
             next = target(taken, &mut rng);
@@ -321,12 +319,61 @@ fn track(
         return sample;
     };
     let (u1, v1) = (x as Real + dx, y as Real + dy);
-    if let Some(z1) = bilinear_depth(&input.depth_t1, u1, v1, cfg.depth_edge_m) {
+    if let Some(z1) = local_depth(&input.depth_t1, u1, v1, cfg) {
         sample.tracked = true;
         sample.px_t1 = [u1, v1];
         sample.p_t1 = input.intrinsics.back_project(u1, v1, z1);
     }
     sample
+}
+
+/// Depth at a sub-pixel position, denoised: a least-squares plane `z = a + b·dx + c·dy`
+/// through the readings of the `(2r+1)²` window around the nearest pixel
+/// (`r` = [`Config::depth_window_px`]) that lie within [`Config::depth_window_tol_m`] of the
+/// bilinear depth there, evaluated at the position. On a surface the plane keeps the
+/// slope and averages the sensor noise of the window; readings of another surface (past
+/// an edge) are left out by the tolerance. `None` where [`bilinear_depth`] is `None`;
+/// the bilinear depth itself when the window has no well-posed plane.
+fn local_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, cfg: &Config) -> Option<Real> {
+    let z_ref = bilinear_depth(depth, u, v, cfg.depth_edge_m)?;
+    let r = cfg.depth_window_px as i64;
+    if r == 0 {
+        return Some(z_ref);
+    }
+    let (xc, yc) = (floor(u + 0.5) as i64, floor(v + 0.5) as i64);
+    // Normal equations of the plane fit, in offsets from (u, v) and from z_ref.
+    let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut sz, mut sxz, mut syz) = (0.0, 0.0, 0.0);
+    for y in yc - r..=yc + r {
+        for x in xc - r..=xc + r {
+            let Some(z) = depth.at(x, y).and_then(valid_depth) else {
+                continue;
+            };
+            let dz = z - z_ref;
+            if !(dz.abs() <= cfg.depth_window_tol_m) {
+                continue;
+            }
+            let (dx, dy) = (x as Real - u, y as Real - v);
+            n += 1.0;
+            sx += dx;
+            sy += dy;
+            sxx += dx * dx;
+            syy += dy * dy;
+            sxy += dx * dy;
+            sz += dz;
+            sxz += dx * dz;
+            syz += dy * dz;
+        }
+    }
+    // Solve [[n sx sy] [sx sxx sxy] [sy sxy syy]] (a b c) = (sz sxz syz) for a (Cramer).
+    let det = n * (sxx * syy - sxy * sxy) - sx * (sx * syy - sxy * sy) + sy * (sx * sxy - sxx * sy);
+    if !(n >= 6.0 && det.abs() > 1e-3 * n * n * n) {
+        return Some(z_ref);
+    }
+    let det_a =
+        sz * (sxx * syy - sxy * sxy) - sx * (sxz * syy - sxy * syz) + sy * (sxz * sxy - sxx * syz);
+    let a = det_a / det;
+    Some(z_ref + a).filter(|z| z.is_finite() && *z > 0.0)
 }
 
 /// Depth at a sub-pixel position from its four neighbours; `None` if any is missing, the

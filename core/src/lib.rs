@@ -45,6 +45,12 @@ pub struct Config {
     /// Largest depth step across the four pixels used to interpolate depth at `t+1`,
     /// metres; above it the point sits on a depth edge and the frame is dropped.
     pub depth_edge_m: Real,
+    /// Radius of the window whose readings are fitted by a plane to denoise the depth of
+    /// a frame's points, pixels (`0`: single readings).
+    pub depth_window_px: u32,
+    /// Readings of the window farther than this from the point's own depth are left out
+    /// of the fit (another surface), metres.
+    pub depth_window_tol_m: Real,
     /// Largest change of any side of a frame's triangle between `t` and `t+1`, metres. A
     /// rigid body keeps its distances, so a larger change means flow or depth error, or a
     /// frame straddling two bodies that moved differently: the frame is dropped.
@@ -117,6 +123,8 @@ impl Config {
         frame_min_side_m: 0.005,
         frame_min_sin: 0.3,
         depth_edge_m: 0.01,
+        depth_window_px: 2,
+        depth_window_tol_m: 0.003,
         frame_rigid_tol_m: 0.004,
         length_scale_m: 0.05,
         static_below_m: 0.005,
@@ -149,6 +157,7 @@ impl Config {
         let lengths = [
             self.frame_max_side_m,
             self.depth_edge_m,
+            self.depth_window_tol_m,
             self.frame_rigid_tol_m,
             self.length_scale_m,
             self.static_below_m,
@@ -170,6 +179,7 @@ impl Config {
             && self.link_posterior < 1.0
             && self.frame_samples >= 3
             && self.frame_samples <= u32::MAX as usize / 4
+            && self.depth_window_px <= 8
             && self.max_clusters >= 2
             && self.max_clusters <= MAX_CLUSTERS
             && self.kmeans_samples >= self.max_clusters

@@ -85,11 +85,15 @@ pub struct CeilingParams {
 }
 
 impl CeilingParams {
-    /// 1 mm, 0.5 degree, 2 pixels (the simulator's touch gap, 2 mm, is about 2 px at
-    /// 0.6 m with a 615 px focal length).
+    /// 1 mm, 1.5 degrees, 2 pixels (the simulator's touch gap, 2 mm, is about 2 px at
+    /// 0.6 m with a 615 px focal length). The rotation floor is the translation floor at
+    /// an object's rim: 1.5° turns a point 4 cm from the centre by 1 mm. (At 0.5°, two
+    /// boxes of one pushed row that each turned by a quarter degree the opposite way, a
+    /// difference of 0.25 mm at their rims, far below what a camera resolves, counted as
+    /// separable.)
     pub const DEFAULT: Self = Self {
         trans_floor_m: 0.001,
-        rot_floor_rad: 0.5_f32.to_radians(),
+        rot_floor_rad: 1.5_f32.to_radians(),
         touch_gap_px: 2,
     };
 }
@@ -694,17 +698,20 @@ mod tests {
             [&b0, &in_place(&b0, 10.0)],
             &p
         ));
-        // Rotations 0.4 degrees apart about a's centre pass; 0.6 degrees apart fail (at b's
-        // centre they disagree by 0.05 m · 0.6° ≈ 0.5 mm, within the floor: the angle
-        // decides).
+        // Turning in place by 1.0 and -0.4 degrees (1.4 apart) passes: either turn moves
+        // the other's centre, 5 cm away, by at most 0.05 m · 1° ≈ 0.9 mm. By 1.0 and -0.6
+        // degrees (1.6 apart) fails on the angle alone.
+        let spin = |pose: &Pose, deg: f32| {
+            Pose::from_parts(pose.translation, turn(deg).rotation * pose.rotation)
+        };
         assert!(same_motion(
-            [&a0, &(turn(1.0) * a0)],
-            [&b0, &(turn(1.4) * b0)],
+            [&a0, &spin(&a0, 1.0)],
+            [&b0, &spin(&b0, -0.4)],
             &p
         ));
         assert!(!same_motion(
-            [&a0, &(turn(1.0) * a0)],
-            [&b0, &(turn(1.6) * b0)],
+            [&a0, &spin(&a0, 1.0)],
+            [&b0, &spin(&b0, -0.6)],
             &p
         ));
     }

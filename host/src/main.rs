@@ -264,7 +264,7 @@ and splits by motion can reach after the pushes so far: the ground truth, with t
 touching objects (at most 2 background pixels apart along a row or column) merged when \
 every static segmentation so far put them in one segment (the segment covering most of \
 each object) and every push so far moved them alike (their true rigid motions agree \
-within 1 mm at either object's centre and 0.5 degree); merges chain through touching \
+within 1 mm at either object's centre and 1.5 degrees); merges chain through touching \
 neighbours. RISeg is judged as a share of it.
 
 Columns (percent, averaged over the scenes that reached that push): overlap F, boundary \
@@ -495,7 +495,7 @@ ground truth with two touching objects (at most 2 background pixels apart along 
 column) merged when every static segmentation of frames 0..t (the built-in segmenter's,
 as `riseg run` uses) put them in one segment (the segment covering most of each object)
 and every push so far moved them alike (true rigid motions within 1 mm at either
-object's centre and 0.5 degree); merges chain through touching neighbours. Below it, per
+object's centre and 1.5 degrees); merges chain through touching neighbours. Below it, per
 push: prediction / ceiling, the ratio of the objects-found columns. A malformed
 poses.json stops the run with an error naming it; without poses.json in every scene the
 ceiling is skipped with a note on stderr.

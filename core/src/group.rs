@@ -37,6 +37,9 @@ pub const NO_GROUP: u16 = u16::MAX;
 /// Bins of the distance KDE (the last bin takes everything beyond [`Config::kde_range_m`]).
 pub const KDE_BINS: usize = 120;
 
+/// Farthest a frame's quick-shift parent may be, in KDE bandwidths (the twist noise).
+const ATTACH_BANDWIDTHS: Real = 3.0;
+
 /// Pair-bin code: never linked (static with moving, or static across segments).
 const NO_PAIR: u8 = 255;
 /// Flag bit set on the bin of a moving pair across two segments.
@@ -206,9 +209,13 @@ pub fn group_frames(
     let rank =
         |density: &[u32], i: usize| (density.get(i).copied().unwrap_or(0), u32::MAX - i as u32);
     let nearness = |code: u8| code & !ACROSS;
+    // A frame attaches only within a few bandwidths: a frame whose twist flow noise put
+    // between two bodies' twists links to both, and the whole sparser body would chain
+    // through it into the denser one if its mode could point that far.
+    let attach_bins = (ATTACH_BANDWIDTHS * cfg.kde_bandwidth_m * bins_per_m) as u8;
     attach.fill(NONE);
     for_each_pair(n, pair_bin, |i, j, code| {
-        if linked(code).is_none() {
+        if linked(code).is_none() || nearness(code) > attach_bins {
             return;
         }
         let (low, high) = if rank(density, i) < rank(density, j) {
@@ -244,17 +251,15 @@ pub fn group_frames(
     }
     let count = finish_groups(twists, labels, cfg, attach, density, frame_group, groups)?;
     let split_m = split.map(|b| b as Real * bin_width);
-    let count = match split_m {
-        Some(resolution_m) => merge_close_groups(
-            labels,
-            cfg,
-            resolution_m,
-            (parent, density),
-            frame_group,
-            groups.get_mut(..count).unwrap_or(&mut []),
-        ),
-        None => count,
-    };
+    // With no valley every pair is near: the groups of a segment are one motion.
+    let count = merge_close_groups(
+        labels,
+        cfg,
+        split_m.unwrap_or(Real::INFINITY),
+        (parent, density),
+        frame_group,
+        groups.get_mut(..count).unwrap_or(&mut []),
+    );
     Ok(Grouping { count, split_m })
 }
 
@@ -275,12 +280,23 @@ fn merge_close_groups(
     for (g, p) in parent.iter_mut().take(count).enumerate() {
         *p = g as u32;
     }
+    // Each group joins its nearest larger group of the segment within the resolution (a
+    // tree, like quick shift): a union of every close pair would let a small group that
+    // sits between two motions chain them together.
     for (g, a) in groups.iter().enumerate().take(count) {
-        for (h, b) in groups.iter().enumerate().take(count).skip(g + 1) {
-            if a.label == b.label && a.twist.distance(&b.twist, cfg.length_scale_m) <= resolution_m
-            {
-                union(parent, g, h);
-            }
+        let larger = |b: &GroupInfo, h: usize| {
+            (b.frames, u32::MAX - h as u32) > (a.frames, u32::MAX - g as u32)
+        };
+        let nearest = groups
+            .iter()
+            .enumerate()
+            .take(count)
+            .filter(|&(h, b)| h != g && b.label == a.label && larger(b, h))
+            .map(|(h, b)| (a.twist.distance(&b.twist, cfg.length_scale_m), h))
+            .filter(|&(d, _)| d <= resolution_m)
+            .min_by(|x, y| x.0.total_cmp(&y.0));
+        if let Some((_, h)) = nearest {
+            union(parent, g, h);
         }
     }
     let mut next = 0u32;

@@ -224,6 +224,9 @@ pub(super) fn heatmap(
     }
 }
 
+/// A principal axis: unit direction and length `√(12 λ)`, metres.
+type Axis = ([f64; 3], f64);
+
 /// First and second moments of a segment's 3-D points (camera frame, metres).
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Moments {
@@ -247,7 +250,7 @@ impl Moments {
     /// Centroid and the two in-plane principal axes with their lengths: a uniform
     /// rectangle of side `L` along an axis has variance `L²/12` there, so `L = √(12 λ)`
     /// (robust to a few stray points, unlike the span).
-    fn axes(&self) -> Option<([f64; 3], [([f64; 3], f64); 2])> {
+    fn axes(&self) -> Option<([f64; 3], [Axis; 2])> {
         if self.count < 3.0 {
             return None;
         }
@@ -279,10 +282,11 @@ fn pack_cuts(
     moments.clear();
     moments.resize(inp.segments + 1, Moments::default());
     for (&l, &p) in inp.labels.iter().zip(inp.pts) {
-        if l != 0 && p[2] > 0.0 {
-            if let Some(m) = moments.get_mut(usize::from(l)) {
-                m.add(p);
-            }
+        if l != 0
+            && p[2] > 0.0
+            && let Some(m) = moments.get_mut(usize::from(l))
+        {
+            m.add(p);
         }
     }
     for (label, m) in moments.iter().enumerate().skip(1) {

@@ -1344,6 +1344,14 @@ fn certain_clusters(
     }
     // The MAX_CLUSTERS largest regions (ties: earlier root), in root order.
     let mut top: FixedVec<(u32, u32), MAX_CLUSTERS> = FixedVec::new();
+    // Once `top` is full: the index of its smallest entry (latest on ties).
+    let smallest = |top: &FixedVec<(u32, u32), MAX_CLUSTERS>| {
+        top.iter()
+            .enumerate()
+            .min_by(|(_, a), (_, b)| a.0.cmp(&b.0).then(b.1.cmp(&a.1)))
+            .map(|(i, _)| i)
+    };
+    let mut worst: Option<usize> = None;
     for (r, (&parent, &pixels)) in runs
         .parent
         .iter()
@@ -1356,17 +1364,15 @@ fn certain_clusters(
         }
         let entry = (pixels, r as u32);
         if top.push(entry).is_err() {
-            // Full: replace the smallest (latest on ties) if the new region is larger.
-            let worst = top
-                .iter()
-                .enumerate()
-                .min_by(|(_, a), (_, b)| a.0.cmp(&b.0).then(b.1.cmp(&a.1)))
-                .map(|(i, _)| i);
+            // Full: replace the smallest if the new region is larger.
             if let Some(slot) = worst.and_then(|i| top.get_mut(i))
                 && slot.0 < pixels
             {
                 *slot = entry;
+                worst = smallest(&top);
             }
+        } else if top.is_full() {
+            worst = smallest(&top);
         }
     }
     top.sort_unstable_by_key(|&(_, root)| root);

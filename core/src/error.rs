@@ -28,6 +28,8 @@ pub enum Buffer {
     Seeds,
     /// Clustering scratch of FindAction.
     Clusters,
+    /// Certain-region runs of FindAction.
+    Runs,
 }
 
 /// Why a `riseg-core` call failed.

@@ -350,7 +350,8 @@ fn local_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, cfg: &Config) -> Op
                 continue;
             };
             let dz = z - z_ref;
-            if !(dz.abs() <= cfg.depth_window_tol_m) {
+            let same_surface = dz.abs() <= cfg.depth_window_tol_m;
+            if !same_surface {
                 continue;
             }
             let (dx, dy) = (x as Real - u, y as Real - v);

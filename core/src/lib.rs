@@ -91,12 +91,24 @@ pub struct Config {
     pub certain_from: u8,
     /// Heatmap value from which a pixel is "uncertain" (paper `l_l`); below it is table.
     pub uncertain_from: u8,
-    /// Largest k tried by the elbow method for either k-means.
+    /// Most clusters of either class: the largest k tried by the elbow method for the
+    /// uncertain k-means, and the most certain clusters kept.
     pub max_clusters: usize,
-    /// Pixels drawn (seeded) from each class for k-means; bounds the cost on large images.
+    /// Pixels drawn (seeded) from each class for clustering; bounds the cost on large
+    /// images.
     pub kmeans_samples: usize,
     /// Lloyd iterations per k-means run.
     pub kmeans_iters: u32,
+    /// Connected certain regions that cover less than this, seen from the camera at their
+    /// mean depth, are fragments and not clusters, square metres.
+    pub region_min_area_m2: Real,
+    /// A connected certain region whose 3-D extent along its long axis exceeds this is
+    /// more than one object and is split, metres. An object's certain region is the
+    /// object less its rim and uncertain bands; one of at most 7 cm stays below 7 cm.
+    pub region_max_len_m: Real,
+    /// Size of one object's certain region when an oversized region is split, metres:
+    /// `round(L / region_cell_m)` pieces along an axis of length `L`.
+    pub region_cell_m: Real,
     /// Largest metric distance between the two certain cluster centres of a pair (paper
     /// `d_a`), metres.
     pub pair_max_m: Real,
@@ -140,6 +152,9 @@ impl Config {
         max_clusters: 8,
         kmeans_samples: 2000,
         kmeans_iters: 20,
+        region_min_area_m2: 0.5e-4,
+        region_max_len_m: 0.08,
+        region_cell_m: 0.06,
         pair_max_m: 0.10,
         uncertain_max_m: 0.03,
         push_len_m: 0.02,
@@ -166,6 +181,9 @@ impl Config {
             self.grow_tol_px,
             self.pair_max_m,
             self.uncertain_max_m,
+            self.region_min_area_m2,
+            self.region_max_len_m,
+            self.region_cell_m,
             self.push_len_m,
         ];
         let ok = lengths.iter().all(|v| v.is_finite() && *v > 0.0)

@@ -163,9 +163,12 @@ proptest! {
         let mut dist2 = vec![0.0; len.dist2];
         let mut nearest = vec![0; len.nearest];
         let mut row_counts = vec![0; len.row_counts];
+        let mut runs = vec![0; len.runs];
+        let mut row_runs = vec![0; len.row_runs];
         let scratch = ActionScratch {
             certain: &mut certain, uncertain: &mut uncertain, dist2: &mut dist2,
-            nearest: &mut nearest, row_counts: &mut row_counts,
+            nearest: &mut nearest, row_counts: &mut row_counts, runs: &mut runs,
+            row_runs: &mut row_runs,
         };
         let heat = ImageView::packed(w, h, &s.heatmap).unwrap();
         let depth = ImageView::packed(w, h, &s.depth_t).unwrap();

@@ -10,9 +10,10 @@
 //!
 //! # From FindAction's push to a command
 //!
-//! FindAction's start point lies on the object's top surface just outside its *certain*
-//! region, which ends a few millimetres inside the object. The caller finds where the
-//! pushed segment really ends along the push line (the object's `edge`, camera frame);
+//! FindAction's start point is where its walk out of the pushed cluster first meets a
+//! pixel the heatmap calls table: on the object's rim (a few millimetres inside its
+//! outline, or the outline of a pack of objects) or just beyond it. The caller finds where
+//! the pushed segment really ends along the push line (the object's `edge`, camera frame);
 //! [`plan_push`] then
 //! 1. maps the edge and the direction to the robot frame and levels the direction (a push
 //!    slides along the table);

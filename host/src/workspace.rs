@@ -113,6 +113,8 @@ pub struct ActionBuf {
     dist2: Vec<Real>,
     nearest: Vec<u32>,
     row_counts: Vec<u32>,
+    runs: Vec<u32>,
+    row_runs: Vec<u32>,
 }
 
 impl ActionBuf {
@@ -126,6 +128,8 @@ impl ActionBuf {
             dist2: vec![0.0; len.dist2],
             nearest: vec![0; len.nearest],
             row_counts: vec![0; len.row_counts],
+            runs: vec![0; len.runs],
+            row_runs: vec![0; len.row_runs],
         }
     }
 
@@ -137,6 +141,8 @@ impl ActionBuf {
             dist2: &mut self.dist2,
             nearest: &mut self.nearest,
             row_counts: &mut self.row_counts,
+            runs: &mut self.runs,
+            row_runs: &mut self.row_runs,
         }
     }
 }

@@ -11,18 +11,21 @@
 //! - **FindAction.** In every scene where the segmenter merged a touching pair (the segment
 //!   covering most of `a` also covers most of `b`), FindAction on the initial heatmap and
 //!   depth ([`Config::PAPER`]) must choose two certain clusters whose pixel centres lie on
-//!   two different objects that touch, in at least 70 % of those scenes.
+//!   two different objects that touch, in at least 80 % of those scenes.
 //!
 //! Both print per-scene numbers (`cargo test --test segment_calibration -- --nocapture`).
 //!
 //! What the numbers say (seeds 0..40, the default window, which the heatmap's contact,
-//! neck and step rules were tuned on): 95.9 % band coverage, FindAction right in 18 of 23
-//! merged scenes. On seeds 40..80 (`RISEG_CALIB_FIRST_SEED=40`) coverage is 96.6 % but
-//! FindAction is right in only 13 of 22, and a heatmap drawn from the ground truth itself
-//! (certain inside objects, uncertain within 6 px of a touching neighbour) gets 14 of 22
-//! there (18 of 23 on 0..40). The 70 % bar therefore depends as much on FindAction's
-//! clustering (Kneedle often picks fewer certain clusters than objects, and a centre then
-//! falls between objects) as on the heatmap.
+//! neck and step rules and FindAction's region and pair rules were tuned on): 97.3 % band
+//! coverage, FindAction right in 22 of 23 merged scenes. On seeds 40..80
+//! (`RISEG_CALIB_FIRST_SEED=40`, not tuned on) coverage is 96.9 % and FindAction is right
+//! in 18 of 22. Before FindAction clustered certain pixels by connected regions and
+//! required pairs to touch, it was right in 17 of 23 and 15 of 22, and would fail the
+//! 80 % bar. Given a heatmap drawn from the ground truth itself (certain inside objects,
+//! uncertain within 6 px of a touching neighbour), FindAction is right in 22 of 23 and 22
+//! of 22, so the misses left come mostly from the heatmap: three of the five over both
+//! windows pick two certain regions of one object that an uncertain band (such as a pack
+//! cut) runs through.
 
 use std::collections::HashSet;
 
@@ -229,5 +232,5 @@ fn find_action_picks_touching_objects_where_merged() {
     }
     println!("FindAction chose a touching pair in {hits} of {scenes} scenes with a merge");
     assert!(scenes > 0, "no scene has a merge: the test checks nothing");
-    assert!(10 * hits >= 7 * scenes, "{hits} of {scenes} scenes < 70 %");
+    assert!(10 * hits >= 8 * scenes, "{hits} of {scenes} scenes < 80 %");
 }

@@ -15,7 +15,10 @@
 //!    a boundary, and pixels nothing was carried to, join the largest component of their
 //!    static segment.
 //! 3. **Seed.** Each grouped frame marks its three tracked pixels at `t+1` with its group.
-//!    A segment holding seeds of two or more groups is split; others are left as they are.
+//!    A group counts in a segment when it has the seeds of at least
+//!    [`Config::min_group_frames`] frames there (three pixels each; fewer are frames that
+//!    flow errors carried across a boundary). A segment where two or more groups count is
+//!    split; others are left as they are.
 //!    Groups that did not move all count as one static group with the identity motion, so
 //!    frames that stayed still never split a segment between them.
 //! 4. **Grow.** In a split segment, regions grow breadth-first from the seeds to
@@ -230,7 +233,10 @@ pub fn correct_mask(
     absorb_fragments(segment, count, cfg.min_segment_px, queue, &mut segs);
 
     // 3. Seed: (segment, group, count) runs.
-    let seed_count = collect_seeds(grid, groups, segment, &mut *scratch.seeds);
+    // A group counts in a segment only with the seeds of a group's worth of frames
+    // there: a few frames that flow errors carried across a boundary split nothing.
+    let min_seeds = 3 * cfg.min_group_frames.max(1);
+    let seed_count = collect_seeds(grid, groups, segment, min_seeds, &mut *scratch.seeds);
     let seeds = &mut scratch.seeds[..seed_count];
     let motions = &mut scratch.motions[..groups.groups.len()];
     let to_camera = Translation3::from(groups.space_origin.coords);
@@ -740,9 +746,6 @@ fn merge_same_motion(
     merges
 }
 
-/// A group counts in a segment only with at least this many seed pixels (one frame).
-const MIN_SEEDS: u32 = 3;
-
 /// The group a frame of group `g` seeds: `None` for [`crate::group::NO_GROUP`]; every group that did
 /// not move seeds as the first such group (with the identity motion), so that frames that
 /// all stayed still never split a segment, whichever static groups they fell into.
@@ -764,6 +767,7 @@ fn collect_seeds(
     grid: Grid,
     groups: &FrameGroups<'_>,
     segment: &[u32],
+    min_seeds: u32,
     seeds: &mut [[u32; 3]],
 ) -> usize {
     let mut len = 0;
@@ -805,7 +809,7 @@ fn collect_seeds(
     let mut kept = 0;
     for i in 0..out {
         let Some(&entry) = seeds.get(i) else { break };
-        if entry[2] >= MIN_SEEDS {
+        if entry[2] >= min_seeds {
             if let Some(slot) = seeds.get_mut(kept) {
                 *slot = entry;
             }

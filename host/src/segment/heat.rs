@@ -31,8 +31,8 @@
 //!      look-alike objects the segmenter could not tell apart: it is cut into a grid of
 //!      `round(L / pack_cell_m)` cells along each axis longer than `pack_max_len_m` (at
 //!      least two along `L₁`), and the one-pixel cut lines are sources. A segment that
-//!      already holds sources of the rules above (at least half its width `L₂` in pixels)
-//!      is left as it is: those show where its objects meet. The cuts need not fall on
+//!      already holds sources of the rules above in its interior (farther than `band_m`
+//!      from the background; at least half its width `L₂` in pixels) is left as it is: those show where its objects meet. The cuts need not fall on
 //!      the true seams: they
 //!      give FindAction certain cells with uncertain bands between, so a push shears one
 //!      part of the pack along another instead of stopping the loop;
@@ -187,9 +187,6 @@ pub(super) fn heatmap(
     // 1c. Necks.
     necks(inp, params, &mut s.notch, &mut s.mark);
 
-    // 1d. Packs: segments larger than one object.
-    pack_cuts(inp, params, &mut s.moments, &mut s.mark);
-
     // 2. Distance to the background.
     s.d_source.resize(n, 0.0);
     s.d_background.resize(n, 0.0);
@@ -201,6 +198,9 @@ pub(super) fn heatmap(
         &mut s.edt,
         &mut s.d_background,
     );
+
+    // 1d. Packs: segments larger than one object (needs the distance to the background).
+    pack_cuts(inp, params, &s.d_background, &mut s.moments, &mut s.mark);
 
     // 3. Heat.
     let mark = &s.mark;
@@ -236,7 +236,8 @@ type Axis = ([f64; 3], f64);
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Moments {
     count: f64,
-    /// Source pixels (rules 1a-1c) in the segment.
+    /// Source pixels (rules 1a-1c) in the segment's interior (farther than `band_m`
+    /// from the background).
     sources: u32,
     /// Sum of the points' depths, metres.
     depth_sum_m: f64,
@@ -284,6 +285,7 @@ impl Moments {
 fn pack_cuts(
     inp: &HeatInput<'_>,
     params: &SegmenterParams,
+    d_background: &[f32],
     moments: &mut Vec<Moments>,
     mark: &mut [u8],
 ) {
@@ -297,11 +299,19 @@ fn pack_cuts(
         let h = p[0] * n[0] + p[1] * n[1] + p[2] * n[2];
         [p[0] - h * n[0], p[1] - h * n[1], p[2] - h * n[2]]
     };
-    for ((&l, &p), &mk) in inp.labels.iter().zip(inp.pts).zip(mark.iter()) {
+    for (((&l, &p), &mk), &d2_px) in inp
+        .labels
+        .iter()
+        .zip(inp.pts)
+        .zip(mark.iter())
+        .zip(d_background)
+    {
         if l != 0
             && let Some(m) = moments.get_mut(usize::from(l))
         {
-            if mk & SOURCE != 0 {
+            // Sources in the interior: a hole or contact at the rim divides nothing.
+            let d_b_m = d2_px.sqrt() * p[2].max(0.0) * inp.inv_focal;
+            if mk & SOURCE != 0 && d_b_m > params.band_m {
                 m.sources += 1;
             }
             if p[2] > 0.0 {
@@ -321,6 +331,12 @@ fn pack_cuts(
         // its width) divide it where the objects really meet: no guessed cuts then.
         let m_per_px = m.depth_sum_m / m.count * f64::from(inp.inv_focal);
         let seam_px = 0.5 * short_m / m_per_px;
+        if std::env::var_os("RISEG_DEBUG_PACK").is_some() {
+            eprintln!(
+                "seg {label} {long_m:.3}x{short_m:.3} oversized {oversized} sources {} seam {seam_px:.0}",
+                m.sources
+            );
+        }
         if !oversized || f64::from(m.sources) >= seam_px {
             continue;
         }

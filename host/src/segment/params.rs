@@ -133,13 +133,13 @@ pub struct SegmenterParams {
     /// 3 cm wide).
     pub neck_chord_max_m: f32,
     /// A segment whose footprint's principal length exceeds this is a pack of several
-    /// objects (heatmap packs), metres. 11.5 cm: objects of interest are up to about 7 cm
-    /// (10 cm boxes, whose visible sides add about a centimetre, stay whole), so any row
-    /// of three or more is cut.
+    /// objects (heatmap packs), metres. 10.5 cm: objects of interest are up to about 7 cm
+    /// across, and their visible sides add up to a centimetre; a row of two 6 cm boxes
+    /// is longer.
     pub pack_max_len_m: f32,
     /// ... or whose footprint area (principal length times width) exceeds this, square
-    /// metres: 85 cm², above a 10 x 7 cm box with its sides, below four 5 cm boxes packed
-    /// 2x2 (a 2x2 pack of 4 cm boxes is as large as one big box and is not cut).
+    /// metres: 65 cm², above a 7 cm square box with its sides (about 60), below four 4 cm
+    /// boxes packed 2x2 (about 70).
     pub pack_max_area_m2: f32,
     /// Nominal size of one object of a pack: the cut grid's cell, metres.
     pub pack_cell_m: f32,
@@ -178,8 +178,8 @@ impl Default for SegmenterParams {
             neck_radius_m: 0.01,
             neck_notch_share: 0.65,
             neck_chord_max_m: 0.03,
-            pack_max_len_m: 0.115,
-            pack_max_area_m2: 0.0085,
+            pack_max_len_m: 0.105,
+            pack_max_area_m2: 0.0065,
             pack_cell_m: 0.06,
         }
     }

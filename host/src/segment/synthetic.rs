@@ -2,11 +2,12 @@
 //! segmenters: boxes on a table seen by a camera 60 cm above it, tilted 15° from straight
 //! down (the simulator's viewpoint), with D415-like depth noise quantised to millimetres.
 //!
-//! Layout (table frame: z up, metres; the camera looks at the origin from `-y`):
+//! Layout (table frame: z up, metres; the camera looks at the origin from `-y`). Every box
+//! is at most 7 cm across, the size of one object the heatmap's pack rule allows:
 //!
 //! | label | box | x range | y range | height | note |
 //! |---|---|---|---|---|---|
-//! | 1 | A | -0.21..-0.14 | -0.05..0.05 | 0.08 | alone |
+//! | 1 | A | -0.21..-0.14 | -0.035..0.035 | 0.08 | alone |
 //! | 2 | B | -0.06..0.005 | -0.04..0.04 | 0.06 | touches C |
 //! | 3 | C | 0.005..0.075 | -0.05..0.05 | 0.09 | touches B |
 //! | 4 | D | 0.15..0.21 | 0.02..0.09 | 0.05 | alone |
@@ -20,7 +21,7 @@ use super::SegmenterParams;
 
 /// Boxes of [`SyntheticTabletop::boxes`]: `[x0, x1, y0, y1, height]` (metres) and colour.
 const BOXES: [([f32; 5], [u8; 3]); 6] = [
-    ([-0.21, -0.14, -0.05, 0.05, 0.08], [200, 40, 40]),
+    ([-0.21, -0.14, -0.035, 0.035, 0.08], [200, 40, 40]),
     ([-0.06, 0.005, -0.04, 0.04, 0.06], [40, 170, 60]),
     ([0.005, 0.075, -0.05, 0.05, 0.09], [50, 70, 200]),
     ([0.15, 0.21, 0.02, 0.09, 0.05], [220, 200, 40]),

@@ -764,8 +764,9 @@ fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
 fn run_eval(args: &EvalArgs) -> anyhow::Result<()> {
     let pairs = eval::find_frame_pairs(&args.gt, &args.pred)?;
     let poses = eval::dataset_poses(&args.gt)?;
-    let ceiling_frames: usize = match &poses {
-        DatasetPoses::All(scenes) => scenes.iter().map(|s| s.frames.len()).sum(),
+    // The ceiling scores every ground-truth frame once more (every scene has poses).
+    let ceiling_frames = match &poses {
+        DatasetPoses::All(_) => pairs.len(),
         DatasetPoses::Missing(_) => 0,
     };
     // Hidden automatically when stderr is not a terminal.
@@ -789,7 +790,7 @@ fn run_eval(args: &EvalArgs) -> anyhow::Result<()> {
         eprintln!(
             "motion ceiling not scored: {} has no {}",
             scene.display(),
-            riseg::ceiling::POSES_FILE
+            scene::POSES_FILE
         );
     }
     print!("{report}");

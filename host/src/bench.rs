@@ -17,22 +17,37 @@
 //! median over steps of each stage (segmentation over all frames, the other stages over
 //! the frames after a push), with the flow on one thread.
 //!
+//! Each push `t` (frame `t − 1` → `t`, chosen by FindAction) is also classed by what it
+//! did to the static segmentation it started from ([`moved_part_of_a_segment`]): it
+//! **moved part of a merged segment** when some segment of frame `t − 1`'s static
+//! segmentation that holds at least two objects (an object belongs to the segment covering
+//! most of its visible pixels in frame `t − 1`: the ceiling's [`static_segments`]) holds
+//! both an object that moved (its true motion exceeds the ceiling's floors: [`moved`])
+//! and an object that did not move alike with it ([`same_motion`]). Only such a push shows
+//! motion anything to split: a push that moves a merged segment as one piece, or moves
+//! only objects the static segmentation already separated, does not. Per push index `t`,
+//! [`BenchReport::partial_push_share`] is the fraction of the pushes `t` made that did.
+//!
 //! Scenes run in parallel (rayon) and are merged in scene order: the tables are the same
 //! for a seed whatever the thread count; only the times vary.
 
 use std::collections::BTreeMap;
 
 use rayon::prelude::*;
-use riseg_core::Config;
+use riseg_core::{Config, Pose};
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    ceiling::{CeilingFrame, CeilingParams, MotionCeiling},
+    ceiling::{
+        CeilingFrame, CeilingParams, MotionCeiling, moved, poses_by_label, same_motion,
+        static_segments,
+    },
     episode::{EpisodeError, EpisodeFrame, Stop},
     eval::{EvalReport, PushReport, write_ceiling_shares},
     flow::{DisFlow, FlowError, FlowParams},
     generate::{MAX_ATTEMPTS, scene_seed},
     metrics::{ImageMetrics, MetricsError, PushAverages, image_metrics},
+    scene::ObjectPose,
     segment::{ClassicalSegmenter, SegmentError, SegmenterParams},
     sim::{Layout, SimConfig, SimError, SimRig, SimScene},
     tracker::{StageTimes, TrackError, Tracker},
@@ -127,6 +142,9 @@ pub struct SceneResult {
     pub riseg_metrics: Vec<ImageMetrics>,
     /// Motion ceiling metrics per frame.
     pub ceiling_metrics: Vec<ImageMetrics>,
+    /// Per push made, in order (entry `t − 1` for push `t`): whether it moved part of a
+    /// merged segment (module docs).
+    pub partial_pushes: Vec<bool>,
     /// Stage times per frame.
     pub times: Vec<StageTimes>,
     /// Why the episode ended.
@@ -137,8 +155,9 @@ pub struct SceneResult {
 pub type Timing = BTreeMap<String, f64>;
 
 /// The benchmark's result; its JSON form is `{"static": [ROW, ...], "riseg": [ROW, ...],
-/// "ceiling": [ROW, ...], "timing_ms": {"segment": .., "flow": .., "frames": .., "twists":
-/// .., "grouping": .., "mask": ..}}` with ROW as in `riseg eval --json`.
+/// "ceiling": [ROW, ...], "partial_push_share": [null, 0.25, ...], "timing_ms":
+/// {"segment": .., "flow": .., "frames": .., "twists": .., "grouping": .., "mask": ..}}`
+/// with ROW as in `riseg eval --json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BenchReport {
     /// The static segmenter alone, per push.
@@ -150,6 +169,11 @@ pub struct BenchReport {
     /// The motion ceiling, per push.
     #[serde(rename = "ceiling")]
     pub ceiling_rows: Vec<PushReport>,
+    /// Per push index `t`, one entry per row: the fraction of the pushes `t` made (one per
+    /// scene that reached frame `t`, the rows' `images`) that moved part of a merged
+    /// segment (module docs); `None` (JSON `null`) for push 0, which no push led to.
+    #[serde(default)]
+    pub partial_push_share: Vec<Option<f64>>,
     /// Median time per step of each stage, milliseconds.
     pub timing_ms: Timing,
 }
@@ -171,6 +195,9 @@ pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchEr
     let mut riseg_metrics = Vec::new();
     let mut ceiling_metrics = Vec::new();
     let mut ceiling = MotionCeiling::new(CeilingParams::DEFAULT);
+    let mut partial_pushes = Vec::new();
+    // The previous frame's ground truth, static segmentation and poses.
+    let mut previous: Option<PushStart> = None;
     let mut times = Vec::new();
     let summary = rig
         .run(&mut tracker, |f: &EpisodeFrame<'_>| {
@@ -181,6 +208,14 @@ pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchEr
                 score_ceiling(&mut ceiling, f)
                     .map_err(|e| format!("motion ceiling of frame {}: {e}", f.t))?,
             );
+            let start = PushStart::of(f)?;
+            if let Some(before) = &previous {
+                partial_pushes.push(
+                    moved_part_of_a_segment(&before.frame(), &start.poses, &CeilingParams::DEFAULT)
+                        .map_err(|e| format!("push {}: {e}", f.t))?,
+                );
+            }
+            previous = Some(start);
             times.push(f.observation.times);
             Ok(())
         })
@@ -191,9 +226,78 @@ pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchEr
         static_metrics,
         riseg_metrics,
         ceiling_metrics,
+        partial_pushes,
         times,
         stop: summary.stop,
     })
+}
+
+/// What [`moved_part_of_a_segment`] needs of the frame a push starts from, owned.
+struct PushStart {
+    width: usize,
+    height: usize,
+    truth: Vec<u16>,
+    static_labels: Vec<u16>,
+    poses: Vec<ObjectPose>,
+}
+
+impl PushStart {
+    fn of(f: &EpisodeFrame<'_>) -> Result<Self, String> {
+        let frame =
+            CeilingFrame::new(f.frame, &f.observation.static_seg.labels).ok_or_else(|| {
+                format!(
+                    "frame {}: the camera gave no ground-truth labels or no object poses",
+                    f.t
+                )
+            })?;
+        Ok(Self {
+            width: frame.width,
+            height: frame.height,
+            truth: frame.truth.to_vec(),
+            static_labels: frame.static_labels.to_vec(),
+            poses: frame.poses.to_vec(),
+        })
+    }
+
+    fn frame(&self) -> CeilingFrame<'_> {
+        CeilingFrame {
+            width: self.width,
+            height: self.height,
+            truth: &self.truth,
+            static_labels: &self.static_labels,
+            poses: &self.poses,
+        }
+    }
+}
+
+/// Whether a push moved part of a merged segment (module docs): `before` is the frame the
+/// push started from (its ground truth, static segmentation and true poses), `after` the
+/// true poses once it was made. Objects are the labels visible in `before.truth`.
+///
+/// # Errors
+/// When an object visible before the push has no pose, or two, before or after it.
+pub fn moved_part_of_a_segment(
+    before: &CeilingFrame<'_>,
+    after: &[ObjectPose],
+    params: &CeilingParams,
+) -> Result<bool, String> {
+    let segment_of = static_segments(before.truth, before.static_labels);
+    let objects = || segment_of.keys().copied();
+    let start = poses_by_label(before.poses, objects()).map_err(|e| format!("before: {e}"))?;
+    let end = poses_by_label(after, objects()).map_err(|e| format!("after: {e}"))?;
+    let mut members: BTreeMap<u16, Vec<[&Pose; 2]>> = BTreeMap::new();
+    for (object, &segment) in &segment_of {
+        // Segment 0: the static segmenter missed the object, which is in no segment. Both
+        // poses exist: `poses_by_label` checked every visible object.
+        if let (true, Some(p0), Some(p1)) = (segment != 0, start.get(object), end.get(object)) {
+            members.entry(segment).or_default().push([p0, p1]);
+        }
+    }
+    Ok(members.values().filter(|m| m.len() >= 2).any(|motions| {
+        motions
+            .iter()
+            .any(|&a| moved(a, params) && motions.iter().any(|&b| !same_motion(a, b, params)))
+    }))
 }
 
 /// Metrics of the static segmentation and of the accumulated mask of one frame.
@@ -222,20 +326,10 @@ fn score_ceiling(
     ceiling: &mut MotionCeiling,
     f: &EpisodeFrame<'_>,
 ) -> Result<ImageMetrics, String> {
-    let (width, height) = f.frame.size();
-    let (Some(truth), Some(poses)) = (&f.frame.truth, &f.frame.truth_poses) else {
-        return Err("the camera gave no ground-truth labels or no object poses".into());
-    };
-    let mask = ceiling
-        .next_frame(&CeilingFrame {
-            width,
-            height,
-            truth: truth.as_slice(),
-            static_labels: &f.observation.static_seg.labels,
-            poses,
-        })
-        .map_err(|e| e.to_string())?;
-    image_metrics(truth.as_slice(), &mask, width, height).map_err(|e| e.to_string())
+    let frame = CeilingFrame::new(f.frame, &f.observation.static_seg.labels)
+        .ok_or("the camera gave no ground-truth labels or no object poses")?;
+    let mask = ceiling.next_frame(&frame).map_err(|e| e.to_string())?;
+    image_metrics(frame.truth, &mask, frame.width, frame.height).map_err(|e| e.to_string())
 }
 
 /// The first attempt seed from `seed` (as `riseg gen` derives them) whose objects the
@@ -284,8 +378,15 @@ pub fn report(results: &[SceneResult]) -> BenchReport {
     let mut static_avg = PushAverages::new();
     let mut riseg_avg = PushAverages::new();
     let mut ceiling_avg = PushAverages::new();
+    // Per push index: (pushes that moved part of a merged segment, pushes).
+    let mut partial: BTreeMap<usize, (usize, usize)> = BTreeMap::new();
     let mut stage: [Vec<f64>; 6] = Default::default();
     for r in results {
+        for (i, &moved_part) in r.partial_pushes.iter().enumerate() {
+            let (k, n) = partial.entry(i + 1).or_default();
+            *k += usize::from(moved_part);
+            *n += 1;
+        }
         let frames = r
             .static_metrics
             .iter()
@@ -310,10 +411,19 @@ pub fn report(results: &[SceneResult]) -> BenchReport {
         .zip(stage.iter_mut())
         .map(|(name, v)| ((*name).to_owned(), median(v)))
         .collect();
+    let riseg_rows = EvalReport::from_rows(&riseg_avg.rows()).pushes;
+    let partial_push_share = riseg_rows
+        .iter()
+        .map(|row| {
+            let &(k, n) = partial.get(&(row.push as usize))?;
+            Some(k as f64 / n as f64)
+        })
+        .collect();
     BenchReport {
         static_rows: EvalReport::from_rows(&static_avg.rows()).pushes,
-        riseg_rows: EvalReport::from_rows(&riseg_avg.rows()).pushes,
+        riseg_rows,
         ceiling_rows: EvalReport::from_rows(&ceiling_avg.rows()).pushes,
+        partial_push_share,
         timing_ms,
     }
 }
@@ -333,7 +443,8 @@ fn median(v: &mut [f64]) -> f64 {
 
 impl core::fmt::Display for BenchReport {
     /// Table 1: static, RISeg and motion ceiling rows side by side per push, RISeg's share
-    /// of the ceiling, then the stage medians.
+    /// of the ceiling, the pushes that moved part of a merged segment, then the stage
+    /// medians.
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         writeln!(
             f,
@@ -362,6 +473,19 @@ impl core::fmt::Display for BenchReport {
             writeln!(f)?;
         }
         write_ceiling_shares(f, "RISeg", &self.riseg_rows, &self.ceiling_rows)?;
+        // The pushes of index t are one per scene that reached frame t: the row's images.
+        for (row, share) in self.riseg_rows.iter().zip(&self.partial_push_share) {
+            if let Some(share) = share {
+                let n = row.images;
+                writeln!(
+                    f,
+                    "pushes that moved part of a merged segment at push {}: {} of {n} ({:.1} %)",
+                    row.push,
+                    (share * n as f64).round() as usize,
+                    100.0 * share
+                )?;
+            }
+        }
         write!(f, "median ms per step:")?;
         for name in StageTimes::NAMES {
             if let Some(ms) = self.timing_ms.get(name) {
@@ -369,5 +493,136 @@ impl core::fmt::Display for BenchReport {
             }
         }
         writeln!(f)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "tests: a panic is the failure report")]
+
+    use super::*;
+
+    /// 12×3 image: objects 1, 2, 3 in a row, 3 pixels wide each, flush.
+    const W: usize = 12;
+    const H: usize = 3;
+
+    fn truth() -> Vec<u16> {
+        [0, 1, 1, 1, 2, 2, 2, 3, 3, 3, 0, 0].repeat(H)
+    }
+
+    /// The static segmentation merges 1 and 2 (segment 7) and finds 3 alone (segment 8).
+    fn static_labels() -> Vec<u16> {
+        truth()
+            .iter()
+            .map(|&l| [0, 7, 7, 8][usize::from(l)])
+            .collect()
+    }
+
+    fn at(label: u16, x_m: f32) -> ObjectPose {
+        ObjectPose {
+            label,
+            world_from_object: Pose::translation(x_m, 0.0, 0.02),
+        }
+    }
+
+    fn start() -> Vec<ObjectPose> {
+        vec![at(1, 0.0), at(2, 0.05), at(3, 0.10)]
+    }
+
+    /// The poses after a push that moves each object `l` by `dx_m(l)` along x.
+    fn pushed(dx_m: impl Fn(u16) -> f32) -> Vec<ObjectPose> {
+        start()
+            .iter()
+            .map(|p| at(p.label, p.world_from_object.translation.x + dx_m(p.label)))
+            .collect()
+    }
+
+    fn partial(after: &[ObjectPose]) -> Result<bool, String> {
+        let (truth, static_labels, before) = (truth(), static_labels(), start());
+        let frame = CeilingFrame {
+            width: W,
+            height: H,
+            truth: &truth,
+            static_labels: &static_labels,
+            poses: &before,
+        };
+        moved_part_of_a_segment(&frame, after, &CeilingParams::DEFAULT)
+    }
+
+    #[test]
+    fn a_push_moved_part_of_a_merged_segment_only_when_it_split_its_motion() {
+        // One of the two merged objects moves: partial.
+        assert!(partial(&pushed(|l| if l == 1 { 0.02 } else { 0.0 })).unwrap());
+        // Both merged objects move, differently: partial.
+        assert!(partial(&pushed(|l| [0.0, 0.02, 0.01, 0.0][usize::from(l)])).unwrap());
+        // Both merged objects move alike: one piece, not partial (3 moving too or not).
+        assert!(!partial(&pushed(|l| if l == 3 { 0.0 } else { 0.02 })).unwrap());
+        assert!(!partial(&pushed(|l| if l == 3 { 0.01 } else { 0.02 })).unwrap());
+        // The object alone in its segment moves: not partial.
+        assert!(!partial(&pushed(|l| if l == 3 { 0.02 } else { 0.0 })).unwrap());
+        // Nothing moves beyond the floors: not partial.
+        assert!(!partial(&pushed(|l| if l == 1 { 0.0009 } else { 0.0 })).unwrap());
+    }
+
+    #[test]
+    fn an_object_the_static_segmenter_missed_is_in_no_segment() {
+        // Segment 0 "holds" 1 and 2 when the segmenter saw neither: never partial.
+        let truth = truth();
+        let missed: Vec<u16> = truth.iter().map(|&l| if l == 3 { 8 } else { 0 }).collect();
+        let before = start();
+        let frame = CeilingFrame {
+            width: W,
+            height: H,
+            truth: &truth,
+            static_labels: &missed,
+            poses: &before,
+        };
+        let one_moves = pushed(|l| if l == 1 { 0.02 } else { 0.0 });
+        assert!(!moved_part_of_a_segment(&frame, &one_moves, &CeilingParams::DEFAULT).unwrap());
+    }
+
+    #[test]
+    fn a_visible_object_without_a_pose_is_an_error_naming_it() {
+        let after = &pushed(|_| 0.0)[..2];
+        assert_eq!(
+            partial(after).unwrap_err(),
+            "after: object 3 is in the ground truth but has no pose"
+        );
+    }
+
+    #[test]
+    fn the_report_counts_partial_pushes_per_push_index() {
+        let frame = image_metrics(&[1], &[1], 1, 1).unwrap();
+        let scene = |frames: usize, partial_pushes: Vec<bool>| SceneResult {
+            scene: 0,
+            sim_seed: 0,
+            static_metrics: vec![frame; frames],
+            riseg_metrics: vec![frame; frames],
+            ceiling_metrics: vec![frame; frames],
+            partial_pushes,
+            times: Vec::new(),
+            stop: Stop::NoAction,
+        };
+        let report = report(&[
+            scene(3, vec![true, false]),
+            scene(2, vec![false]),
+            scene(3, vec![true, true]),
+        ]);
+        assert_eq!(
+            report.partial_push_share,
+            [None, Some(2.0 / 3.0), Some(0.5)]
+        );
+        let table = report.to_string();
+        assert!(
+            table.contains("pushes that moved part of a merged segment at push 1: 2 of 3 (66.7 %)"),
+            "{table}"
+        );
+        assert!(
+            table.contains("pushes that moved part of a merged segment at push 2: 1 of 2 (50.0 %)"),
+            "{table}"
+        );
+        let json = serde_json::to_value(&report).unwrap();
+        assert_eq!(json["partial_push_share"][0], serde_json::Value::Null);
+        assert_eq!(json["partial_push_share"][2], 0.5);
     }
 }

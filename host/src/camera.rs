@@ -5,9 +5,8 @@ use riseg_core::Intrinsics;
 
 use crate::{
     imageio::{DepthImage, Gray16Image, RgbImage},
-    scene::Scene,
+    scene::{ObjectPose, Scene},
     segment::{RgbdFrame, SegmentError},
-    sim::ObjectPose,
 };
 
 /// One RGB-D frame, owned: colour, depth in metres (`<= 0` or not finite: no reading) and
@@ -24,8 +23,8 @@ pub struct CameraFrame {
     /// simulator, or a recording with a `label/` folder. Only for scoring.
     pub truth: Option<Gray16Image>,
     /// Every object's true pose when the frame was taken (world frame, labels as in
-    /// `truth`), when the source knows them: the simulator. Only for scoring (the motion
-    /// ceiling, [`crate::ceiling`]).
+    /// `truth`), when the source knows them: the simulator, or a recording with a
+    /// `poses.json`. Only for scoring (the motion ceiling, [`crate::ceiling`]).
     pub truth_poses: Option<Vec<ObjectPose>>,
 }
 
@@ -75,7 +74,8 @@ impl<'a> SceneReplay<'a> {
         Self { scene, next: 0 }
     }
 
-    /// Frame `t` with depth converted to metres by the scene's depth unit.
+    /// Frame `t` with depth converted to metres by the scene's depth unit, and the
+    /// scene's ground-truth labels and poses of frame `t` when it has them.
     #[must_use]
     pub fn frame(scene: &Scene, t: usize) -> Option<CameraFrame> {
         let rgb = scene.rgb.get(t)?.clone();
@@ -85,7 +85,7 @@ impl<'a> SceneReplay<'a> {
             depth_m,
             intrinsics: scene.camera.intrinsics(),
             truth: scene.labels.as_ref().and_then(|l| l.get(t)).cloned(),
-            truth_poses: None,
+            truth_poses: scene.poses.as_ref().and_then(|p| p.get(t)).cloned(),
         })
     }
 }

@@ -29,7 +29,8 @@
 //!    [`CeilingParams::rot_floor_rad`], and at both objects' centres `c` (the body
 //!    origins `P_a(s−1)` and `P_b(s−1)`, world frame), `‖M_a·c − M_b·c‖` is at most
 //!    [`CeilingParams::trans_floor_m`]. An object that did not move has `M = I`, so two
-//!    objects that both stayed put moved alike.
+//!    objects that both stayed put moved alike; an object **moved** ([`moved`]) when its
+//!    motion is not alike with `I`.
 //! 3. **They touch in `G_t`** ([`touching_pairs`]): along one row or one column, a pixel
 //!    of `a` and a pixel of `b` are separated by at most [`CeilingParams::touch_gap_px`]
 //!    background pixels (0: 4-adjacent).
@@ -41,36 +42,22 @@
 //! Condition 1 is an equivalence (a plurality label is a function of the object), so
 //! only condition 2's floor is not transitive; the union-find closes it.
 //!
-//! # `poses.json`
+//! # Poses
 //!
-//! A scene folder may record the true poses ([`read_poses`]):
-//!
-//! ```text
-//! {"frames": [[{"label": 1, "translation_m": [x, y, z], "rotation_xyzw": [qx, qy, qz, qw]},
-//!              ...],          frames[t] = the scene after t pushes, world (table) frame
-//!             ...]}
-//! ```
+//! A scene folder records the true poses in `poses.json` (format and rules in
+//! [`crate::scene`]; read into [`Scene::poses`](crate::scene::Scene::poses), and given
+//! per frame as [`CameraFrame::truth_poses`]). The simulator's frames carry them too.
 
-use std::{
-    collections::{BTreeMap, BTreeSet},
-    io,
-    path::{Path, PathBuf},
-};
+use std::collections::{BTreeMap, BTreeSet};
 
-use nalgebra::{Point3, Quaternion, Translation3, UnitQuaternion};
+use nalgebra::Point3;
 use riseg_core::Pose;
-use serde::Deserialize;
 
 use crate::{
+    camera::CameraFrame,
+    scene::ObjectPose,
     segment::{union_find_join, union_find_root},
-    sim::ObjectPose,
 };
-
-/// The file of a scene folder that holds the objects' true poses.
-pub const POSES_FILE: &str = "poses.json";
-
-/// A quaternion in `poses.json` whose norm is further than this from 1 is refused.
-const UNIT_QUATERNION_TOLERANCE: f32 = 1e-3;
 
 /// When two motions count as the same, and when two objects touch (module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -104,34 +91,10 @@ impl Default for CeilingParams {
     }
 }
 
-/// Why a ceiling could not be computed. Errors about `poses.json` name the file.
+/// Why a ceiling could not be computed.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum CeilingError {
-    /// `poses.json` exists but cannot be read.
-    #[error("{}: {source}", path.display())]
-    PosesIo {
-        /// The file.
-        path: PathBuf,
-        /// The operating system's error.
-        source: io::Error,
-    },
-    /// `poses.json` is not JSON of the expected shape.
-    #[error("{}: malformed poses file: {source}", path.display())]
-    PosesJson {
-        /// The file.
-        path: PathBuf,
-        /// The parser's complaint (with line and column).
-        source: serde_json::Error,
-    },
-    /// `poses.json` parses but a value is unusable.
-    #[error("{}: {reason}", path.display())]
-    PosesInvalid {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong, naming the frame and label.
-        reason: String,
-    },
     /// A label map does not hold `width · height` labels.
     #[error("frame {frame}: the {what} has {got} labels, expected {width}x{height}")]
     Size {
@@ -169,6 +132,22 @@ pub struct CeilingFrame<'a> {
     pub static_labels: &'a [u16],
     /// Every object's true pose, world frame.
     pub poses: &'a [ObjectPose],
+}
+
+impl<'a> CeilingFrame<'a> {
+    /// A captured frame with its static segmentation (row-major, the frame's size);
+    /// `None` when the frame has no ground-truth labels or no poses.
+    #[must_use]
+    pub fn new(frame: &'a CameraFrame, static_labels: &'a [u16]) -> Option<Self> {
+        let (width, height) = frame.size();
+        Some(Self {
+            width,
+            height,
+            truth: frame.truth.as_ref()?.as_slice(),
+            static_labels,
+            poses: frame.truth_poses.as_deref()?,
+        })
+    }
 }
 
 /// The motion ceiling of one scene, frame after frame (module docs).
@@ -310,6 +289,13 @@ pub fn same_motion(a: [&Pose; 2], b: [&Pose; 2], params: &CeilingParams) -> bool
         })
 }
 
+/// Whether an object moved between two frames beyond the floors of [`same_motion`]: its
+/// motion, `[pose before, pose after]` (world frame), is not alike with staying put.
+#[must_use]
+pub fn moved(pose: [&Pose; 2], params: &CeilingParams) -> bool {
+    !same_motion(pose, [pose[0], pose[0]], params)
+}
+
 /// Object pairs `(a, b)`, `a < b`, of `truth` (row-major `width × height`) that touch: on
 /// one row or one column, a pixel of `a` and one of `b` with at most `gap_px` background
 /// pixels between them.
@@ -356,8 +342,9 @@ fn merge_objects<'p>(truth: &[u16], joined: impl Iterator<Item = &'p (u16, u16)>
     truth.iter().map(|&label| root(label)).collect()
 }
 
-/// The poses by label; every label of `objects` must have exactly one.
-fn poses_by_label(
+/// The poses by label; every label of `objects` must have exactly one (the error says
+/// which label has none, or two).
+pub(crate) fn poses_by_label(
     poses: &[ObjectPose],
     objects: impl Iterator<Item = u16>,
 ) -> Result<BTreeMap<u16, Pose>, String> {
@@ -375,97 +362,6 @@ fn poses_by_label(
         }
     }
     Ok(by_label)
-}
-
-#[derive(Deserialize)]
-struct PosesFile {
-    frames: Vec<Vec<PoseEntry>>,
-}
-
-#[derive(Deserialize)]
-struct PoseEntry {
-    label: u16,
-    translation_m: [f32; 3],
-    rotation_xyzw: [f32; 4],
-}
-
-/// Reads a `poses.json` (module docs): the poses of every frame, `frames[t]` = after `t`
-/// pushes. `Ok(None)` when the file does not exist.
-///
-/// # Errors
-/// [`CeilingError::PosesIo`] if it cannot be read, [`CeilingError::PosesJson`] if it is
-/// not JSON of that shape, [`CeilingError::PosesInvalid`] for no frames, label 0, a label
-/// twice in one frame, a non-finite value or a rotation that is not a unit quaternion;
-/// all name the file.
-pub fn read_poses(path: &Path) -> Result<Option<Vec<Vec<ObjectPose>>>, CeilingError> {
-    let bytes = match std::fs::read(path) {
-        Ok(bytes) => bytes,
-        Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
-        Err(source) => {
-            return Err(CeilingError::PosesIo {
-                path: path.to_owned(),
-                source,
-            });
-        }
-    };
-    let file: PosesFile =
-        serde_json::from_slice(&bytes).map_err(|source| CeilingError::PosesJson {
-            path: path.to_owned(),
-            source,
-        })?;
-    let invalid = |reason: String| CeilingError::PosesInvalid {
-        path: path.to_owned(),
-        reason,
-    };
-    if file.frames.is_empty() {
-        return Err(invalid("\"frames\" is empty; frame 0 needs poses".into()));
-    }
-    let frames: Vec<Vec<ObjectPose>> = file
-        .frames
-        .iter()
-        .enumerate()
-        .map(|(t, entries)| {
-            let mut seen = BTreeSet::new();
-            entries
-                .iter()
-                .map(|e| {
-                    let at = format!("frame {t}, label {}", e.label);
-                    if e.label == 0 {
-                        return Err(invalid(format!("frame {t}: label 0 is the background")));
-                    }
-                    if !seen.insert(e.label) {
-                        return Err(invalid(format!("{at}: listed twice")));
-                    }
-                    if !e
-                        .translation_m
-                        .iter()
-                        .chain(&e.rotation_xyzw)
-                        .all(|v| v.is_finite())
-                    {
-                        return Err(invalid(format!("{at}: a value is not finite")));
-                    }
-                    let [x, y, z, w] = e.rotation_xyzw;
-                    let q = Quaternion::new(w, x, y, z);
-                    if (q.norm() - 1.0).abs() > UNIT_QUATERNION_TOLERANCE {
-                        return Err(invalid(format!(
-                            "{at}: rotation_xyzw {:?} is not a unit quaternion (norm {})",
-                            e.rotation_xyzw,
-                            q.norm()
-                        )));
-                    }
-                    let [tx, ty, tz] = e.translation_m;
-                    Ok(ObjectPose {
-                        label: e.label,
-                        world_from_object: Pose::from_parts(
-                            Translation3::new(tx, ty, tz),
-                            UnitQuaternion::from_quaternion(q),
-                        ),
-                    })
-                })
-                .collect::<Result<Vec<_>, _>>()
-        })
-        .collect::<Result<_, _>>()?;
-    Ok(Some(frames))
 }
 
 #[cfg(test)]
@@ -717,6 +613,25 @@ mod tests {
     }
 
     #[test]
+    fn moved_means_beyond_the_floors_of_staying_put() {
+        let p = CeilingParams::DEFAULT;
+        let a0 = Pose::translation(0.3, 0.1, 0.02);
+        let shift = |dx: f32| Pose::translation(dx, 0.0, 0.0) * a0;
+        let spin = |deg: f32| {
+            Pose::from_parts(
+                a0.translation,
+                Pose::rotation(Vector3::z() * deg.to_radians()).rotation,
+            )
+        };
+        assert!(!super::moved([&a0, &a0], &p));
+        assert!(!super::moved([&a0, &shift(0.0009)], &p));
+        assert!(super::moved([&a0, &shift(0.0011)], &p));
+        // Turning in place moves no centre: only the angle decides.
+        assert!(!super::moved([&a0, &spin(0.4)], &p));
+        assert!(super::moved([&a0, &spin(0.6)], &p));
+    }
+
+    #[test]
     fn missing_or_doubled_poses_and_bad_sizes_are_errors() {
         let truth = row_of_three();
         let fault = |static_labels: &[u16], poses: &[ObjectPose]| {
@@ -744,71 +659,5 @@ mod tests {
             fault(&truth[1..], &p),
             "frame 0: the static segmentation has 35 labels, expected 12x3"
         );
-    }
-
-    #[test]
-    fn poses_json_is_read_and_its_faults_name_the_file() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join(POSES_FILE);
-        assert!(read_poses(&path).unwrap().is_none());
-
-        let half_turn_z = [0.0, 0.0, 1.0, 0.0];
-        std::fs::write(
-            &path,
-            serde_json::json!({"frames": [
-                [{"label": 1, "translation_m": [0.1, 0.2, 0.03], "rotation_xyzw": [0.0, 0.0, 0.0, 1.0]}],
-                [{"label": 1, "translation_m": [0.1, 0.22, 0.03], "rotation_xyzw": half_turn_z}],
-            ]})
-            .to_string(),
-        )
-        .unwrap();
-        let frames = read_poses(&path).unwrap().unwrap();
-        assert_eq!(frames.len(), 2);
-        let p = frames[1][0].world_from_object;
-        assert_eq!(frames[1][0].label, 1);
-        assert_eq!(p.translation.vector, Vector3::new(0.1, 0.22, 0.03));
-        let x = p.rotation * Vector3::x();
-        assert!((x - Vector3::new(-1.0, 0.0, 0.0)).norm() < 1e-6, "{x}");
-
-        let fault = |json: &str| {
-            std::fs::write(&path, json).unwrap();
-            read_poses(&path).unwrap_err().to_string()
-        };
-        let name = path.display().to_string();
-        let entry = |label: u16, q: &str| {
-            format!(r#"{{"label": {label}, "translation_m": [0, 0, 0], "rotation_xyzw": {q}}}"#)
-        };
-        let unit = "[0, 0, 0, 1]";
-        for (json, says) in [
-            (
-                "{\"frames\": [[{\"label\": 1}]]}".to_owned(),
-                "malformed poses file: missing field `translation_m`",
-            ),
-            (
-                "not json".to_owned(),
-                "malformed poses file: expected ident",
-            ),
-            (r#"{"frames": []}"#.to_owned(), "\"frames\" is empty"),
-            (
-                format!(r#"{{"frames": [[{}]]}}"#, entry(0, unit)),
-                "frame 0: label 0 is the background",
-            ),
-            (
-                format!(
-                    r#"{{"frames": [[], [{}, {}]]}}"#,
-                    entry(2, unit),
-                    entry(2, unit)
-                ),
-                "frame 1, label 2: listed twice",
-            ),
-            (
-                format!(r#"{{"frames": [[{}]]}}"#, entry(1, "[0, 0, 0, 2]")),
-                "frame 0, label 1: rotation_xyzw [0.0, 0.0, 0.0, 2.0] is not a unit quaternion",
-            ),
-        ] {
-            let err = fault(&json);
-            assert!(err.starts_with(&format!("{name}: ")), "{err}");
-            assert!(err.contains(says), "{err} should say {says}");
-        }
     }
 }

@@ -25,11 +25,12 @@
 //! # Motion ceiling
 //!
 //! When every scene folder of `DATASET` has a `poses.json` (the objects' true poses,
-//! format in [`crate::ceiling`]; [`dataset_poses`] reads them), [`evaluate_ceiling`]
-//! scores the motion ceiling of every ground-truth frame the same way: each scene is read
-//! as a scene folder ([`Scene::read`]: colour, depth and labels are needed), every frame
-//! is segmented by the given static segmenter, and [`MotionCeiling`] turns the labels,
-//! static segmentations and poses of frames `0..=t` into the ceiling mask of frame `t`.
+//! format in [`crate::scene`]; [`dataset_poses`] says whether they do),
+//! [`evaluate_ceiling`] scores the motion ceiling of every ground-truth frame the same
+//! way: each scene is read as a scene folder ([`Scene::read`], which checks `poses.json`
+//! too: colour, depth, labels and poses are needed), every frame is segmented by the given
+//! static segmenter, and [`MotionCeiling`] turns the labels, static segmentations and poses
+//! of frames `0..=t` ([`SceneReplay::frame`]) into the ceiling mask of frame `t`.
 //! The rows go to [`EvalReport::ceiling`]; the table then also prints the prediction's
 //! share of the ceiling per push (the ratio of the objects-found percentages).
 
@@ -42,11 +43,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::{
     camera::SceneReplay,
-    ceiling::{CeilingError, CeilingFrame, CeilingParams, MotionCeiling, POSES_FILE, read_poses},
+    ceiling::{CeilingError, CeilingFrame, CeilingParams, MotionCeiling},
     metrics::{self, ImageMetrics, MetricsError, MetricsRow, Prf, PushAverages},
-    scene::{LABEL_DIR, Scene, SceneError, frame_file_name, list_scenes},
+    scene::{LABEL_DIR, POSES_FILE, Scene, SceneError, frame_file_name, list_scenes},
     segment::{SegmentError, StaticSegmenter},
-    sim::ObjectPose,
 };
 
 /// Why an evaluation failed. Every variant names the file or folder at fault; the
@@ -128,12 +128,18 @@ pub enum EvalError {
         /// Why.
         source: MetricsError,
     },
-    /// A scene folder could not be read for the motion ceiling.
+    /// A scene folder could not be read for the motion ceiling (a malformed `poses.json`
+    /// or one that does not fit its scene is named here, by [`Scene::read`]).
     #[error(transparent)]
     Scene(#[from] SceneError),
-    /// A `poses.json` could not be read, or does not fit its scene.
-    #[error(transparent)]
-    Poses(#[from] CeilingError),
+    /// The motion ceiling refused a scene's poses: an object of the ground truth has none.
+    #[error("{}", path.display())]
+    Poses {
+        /// The scene's `poses.json`.
+        path: PathBuf,
+        /// Why.
+        source: CeilingError,
+    },
     /// The static segmenter failed on a frame of a scene.
     #[error("{}: static segmentation of frame {frame}", scene.display())]
     Segment {
@@ -496,30 +502,21 @@ pub fn write_ceiling_shares(
     Ok(())
 }
 
-/// One scene folder's true object poses.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ScenePoses {
-    /// The scene folder.
-    pub scene: PathBuf,
-    /// `frames[t]`: every object's pose after `t` pushes, world frame.
-    pub frames: Vec<Vec<ObjectPose>>,
-}
-
 /// Whether a dataset can have a motion ceiling.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum DatasetPoses {
-    /// Every scene folder has a `poses.json`: each scene's poses, in name order.
-    All(Vec<ScenePoses>),
+    /// Every scene folder has a `poses.json`: the scene folders, in name order.
+    All(Vec<PathBuf>),
     /// The first scene folder (in name order) without a `poses.json`.
     Missing(PathBuf),
 }
 
-/// Reads the `poses.json` of every `scene_*` folder of `gt_root`, stopping at the first
-/// scene that has none.
+/// Whether every `scene_*` folder of `gt_root` has a `poses.json` (read and checked later,
+/// by [`evaluate_ceiling`]).
 ///
 /// # Errors
 /// [`EvalError::Scene`] if `gt_root` cannot be listed, [`EvalError::NoScenes`] if it has
-/// no scene folder, [`EvalError::Poses`] naming a `poses.json` that cannot be read.
+/// no scene folder.
 pub fn dataset_poses(gt_root: &Path) -> Result<DatasetPoses, EvalError> {
     let scenes = list_scenes(gt_root)?;
     if scenes.is_empty() {
@@ -527,55 +524,43 @@ pub fn dataset_poses(gt_root: &Path) -> Result<DatasetPoses, EvalError> {
             root: gt_root.to_owned(),
         });
     }
-    let mut all = Vec::with_capacity(scenes.len());
-    for scene in scenes {
-        match read_poses(&scene.join(POSES_FILE))? {
-            Some(frames) => all.push(ScenePoses { scene, frames }),
-            None => return Ok(DatasetPoses::Missing(scene)),
-        }
+    match scenes.iter().find(|s| !s.join(POSES_FILE).exists()) {
+        Some(scene) => Ok(DatasetPoses::Missing(scene.clone())),
+        None => Ok(DatasetPoses::All(scenes)),
     }
-    Ok(DatasetPoses::All(all))
 }
 
-/// Scores the motion ceiling of every frame of `scenes` (module docs), with static
-/// segmentations from `segmenter`; calls `on_frame` after each frame. The rows are in
-/// percent, one per push index.
+/// Scores the motion ceiling of every frame of the scene folders `scenes` (module docs),
+/// with static segmentations from `segmenter`; calls `on_frame` after each frame. The rows
+/// are in percent, one per push index.
 ///
 /// # Errors
-/// [`EvalError::Scene`] if a scene folder is unreadable; [`EvalError::NoGroundTruth`] if
-/// it has no labels; [`EvalError::Poses`] naming a `poses.json` whose frame count differs
-/// from the scene's or that lacks a pose for an object; [`EvalError::Segment`] if the
-/// segmenter fails; [`EvalError::Metrics`] naming the label map the metrics refuse.
+/// [`EvalError::Scene`] naming the file if a scene folder is unreadable or breaks a rule
+/// of [`Scene::read`], its `poses.json` included (one whose frame count differs from the
+/// scene's, say), or has no `poses.json`; [`EvalError::NoGroundTruth`] if it has no
+/// labels; [`EvalError::Poses`] naming a `poses.json` that lacks the pose of an object of
+/// the labels; [`EvalError::Segment`] if the segmenter fails; [`EvalError::Metrics`]
+/// naming the label map the metrics refuse.
 pub fn evaluate_ceiling(
-    scenes: &[ScenePoses],
+    scenes: &[PathBuf],
     segmenter: &mut impl StaticSegmenter,
     params: &CeilingParams,
     mut on_frame: impl FnMut(),
 ) -> Result<Vec<PushReport>, EvalError> {
     let mut averages = PushAverages::new();
-    for ScenePoses { scene: dir, frames } in scenes {
-        let poses_path = dir.join(POSES_FILE);
-        let poses_invalid = |reason: String| CeilingError::PosesInvalid {
-            path: poses_path.clone(),
-            reason,
-        };
+    for dir in scenes {
         let scene = Scene::read(dir)?;
-        if frames.len() != scene.frames() {
-            return Err(poses_invalid(format!(
-                "{} frames of poses, but the scene has {} frames",
-                frames.len(),
-                scene.frames()
-            ))
-            .into());
+        if scene.labels.is_none() {
+            return Err(EvalError::NoGroundTruth { scene: dir.clone() });
+        }
+        let poses_path = dir.join(POSES_FILE);
+        if scene.poses.is_none() {
+            return Err(SceneError::Missing { path: poses_path }.into());
         }
         let mut ceiling = MotionCeiling::new(*params);
-        for (t, poses) in frames.iter().enumerate() {
-            let (Some(frame), Some(truth)) = (
-                SceneReplay::frame(&scene, t),
-                scene.labels.as_ref().and_then(|l| l.get(t)),
-            ) else {
-                return Err(EvalError::NoGroundTruth { scene: dir.clone() });
-            };
+        // Every frame has its labels and poses: `Scene::read` checked their counts.
+        let frames = (0..scene.frames()).map_while(|t| SceneReplay::frame(&scene, t));
+        for (t, frame) in frames.enumerate() {
             let static_seg = frame
                 .rgbd()
                 .and_then(|rgbd| segmenter.segment(&rgbd, &frame.intrinsics))
@@ -584,24 +569,22 @@ pub fn evaluate_ceiling(
                     frame: t,
                     source,
                 })?;
-            let (width, height) = frame.size();
+            let Some(input) = CeilingFrame::new(&frame, &static_seg.labels) else {
+                return Err(EvalError::NoGroundTruth { scene: dir.clone() });
+            };
             let mask = ceiling
-                .next_frame(&CeilingFrame {
-                    width,
-                    height,
-                    truth: truth.as_slice(),
-                    static_labels: &static_seg.labels,
-                    poses,
-                })
+                .next_frame(&input)
                 // `Scene::read` checked every image's size, so what the ceiling can refuse
                 // here is the poses: an object of the labels without one.
-                .map_err(|e| poses_invalid(e.to_string()))?;
-            let scored = metrics::image_metrics(truth.as_slice(), &mask, width, height).map_err(
-                |source| EvalError::Metrics {
+                .map_err(|source| EvalError::Poses {
+                    path: poses_path.clone(),
+                    source,
+                })?;
+            let scored = metrics::image_metrics(input.truth, &mask, input.width, input.height)
+                .map_err(|source| EvalError::Metrics {
                     path: dir.join(LABEL_DIR).join(frame_file_name(t, "png")),
                     source,
-                },
-            )?;
+                })?;
             averages.add(t as u32, &scored);
             on_frame();
         }

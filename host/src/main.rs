@@ -269,9 +269,15 @@ neighbours. RISeg is judged as a share of it.
 
 Columns (percent, averaged over the scenes that reached that push): overlap F, boundary \
 F, and the share of objects found with overlap F > 75 (see `riseg eval --help`). Below \
-the table, per push: RISeg / ceiling, the ratio of their objects-found columns. Then \
-the median milliseconds per step of each stage: segment (static segmentation), flow (one \
-thread), frames, twists, grouping, mask (riseg-core's UpdateMask stages).
+the table, per push: RISeg / ceiling, the ratio of their objects-found columns; and how \
+many of the pushes made at that index moved part of a merged segment: some segment of \
+the static segmentation before the push holds two or more objects (an object belongs to \
+the segment covering most of it) and the push moved one of them (its true motion \
+exceeds 1 mm or 0.5 degree) but not another alike with it. Only such a push gives \
+motion something to split; moving a merged segment as one piece, or an object the static \
+segmenter already found alone, does not. Then the median milliseconds per step of each \
+stage: segment (static segmentation), flow (one thread), frames, twists, grouping, mask \
+(riseg-core's UpdateMask stages).
 
 The tables are the same for a seed on any machine and thread count; times vary.
 
@@ -290,12 +296,16 @@ struct BenchArgs {
     #[arg(long, value_enum, default_value_t = LayoutArg::Loose)]
     layout: LayoutArg,
     /// Also write the report as JSON: {"static": [ROW..], "riseg": [ROW..], "ceiling":
-    /// [ROW..], "timing_ms": {..}}, ROW as in `riseg eval --json`. Written atomically.
+    /// [ROW..], "partial_push_share": [..], "timing_ms": {..}}, ROW as in `riseg eval
+    /// --json`; partial_push_share has one entry per row: the fraction of the pushes made
+    /// at that push index (one per scene) that moved part of a merged segment (null for
+    /// push 0). Written atomically.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
     /// Also print one line per scene, one entry per frame: objects found (F > 75) by the
     /// static segmentation -> by RISeg, then by the motion ceiling, and the boundary F of
-    /// static -> RISeg ("3/4->4/4 ceil 4/4 b82->97"); and why the episode stopped.
+    /// static -> RISeg ("3/4->4/4 ceil 4/4 b82->97", a leading "*" when the push to
+    /// that frame moved part of a merged segment); and why the episode stopped.
     #[arg(long)]
     per_scene: bool,
 }
@@ -728,9 +738,16 @@ fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
                 .iter()
                 .zip(&r.riseg_metrics)
                 .zip(&r.ceiling_metrics)
-                .map(|((s, m), c)| {
+                .enumerate()
+                .map(|(t, ((s, m), c))| {
+                    // Push t is entry t - 1 of the partial pushes.
+                    let partial = t
+                        .checked_sub(1)
+                        .and_then(|i| r.partial_pushes.get(i))
+                        .is_some_and(|&p| p);
                     format!(
-                        "{}/{}->{}/{} ceil {}/{} b{:.0}->{:.0}",
+                        "{}{}/{}->{}/{} ceil {}/{} b{:.0}->{:.0}",
+                        if partial { "*" } else { "" },
                         s.objects_detected,
                         s.objects_gt,
                         m.objects_detected,
@@ -764,8 +781,9 @@ fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
 fn run_eval(args: &EvalArgs) -> anyhow::Result<()> {
     let pairs = eval::find_frame_pairs(&args.gt, &args.pred)?;
     let poses = eval::dataset_poses(&args.gt)?;
-    let ceiling_frames: usize = match &poses {
-        DatasetPoses::All(scenes) => scenes.iter().map(|s| s.frames.len()).sum(),
+    // The ceiling scores every ground-truth frame once more (every scene has poses).
+    let ceiling_frames = match &poses {
+        DatasetPoses::All(_) => pairs.len(),
         DatasetPoses::Missing(_) => 0,
     };
     // Hidden automatically when stderr is not a terminal.
@@ -789,7 +807,7 @@ fn run_eval(args: &EvalArgs) -> anyhow::Result<()> {
         eprintln!(
             "motion ceiling not scored: {} has no {}",
             scene.display(),
-            riseg::ceiling::POSES_FILE
+            scene::POSES_FILE
         );
     }
     print!("{report}");

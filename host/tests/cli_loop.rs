@@ -57,6 +57,37 @@ fn bench_json_has_the_table_one_shape() {
         assert_eq!(rows[0]["push"], 0);
         assert!(rows[0]["overlap"]["f"].is_number() && rows[0]["objects_f75_pct"].is_number());
     }
+    // One share per push index; no push led to frame 0.
+    let shares = v["partial_push_share"].as_array().expect("shares");
+    assert_eq!(
+        shares.len(),
+        v["riseg"].as_array().expect("rows").len(),
+        "{v}"
+    );
+    assert!(shares[0].is_null(), "{v}");
+    for share in &shares[1..] {
+        assert!(
+            share.as_f64().is_some_and(|s| (0.0..=1.0).contains(&s)),
+            "{v}"
+        );
+    }
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        stdout
+            .matches("pushes that moved part of a merged segment at push ")
+            .count(),
+        shares.len() - 1,
+        "{stdout}"
+    );
+    let help = riseg()
+        .args(["bench", "--help"])
+        .output()
+        .expect("run riseg");
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(
+        help.contains("moved part of a merged segment") && help.contains("partial_push_share"),
+        "{help}"
+    );
     let timing = v["timing_ms"].as_object().expect("timing");
     for stage in ["segment", "flow", "frames", "twists", "grouping", "mask"] {
         assert!(

@@ -1,15 +1,15 @@
 //! `riseg eval` on tiny PNG datasets written into a temporary folder: the binary end to
 //! end (table, JSON, errors naming the file) and the library's per-push averaging; and the
-//! motion ceiling on a dataset `riseg gen` made, with a `poses.json` written here.
+//! motion ceiling on a dataset `riseg gen` made, with its own `poses.json` or one written
+//! here.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 
-use riseg::ceiling::POSES_FILE;
 use riseg::eval::{self, EvalError, EvalReport};
-use riseg::scene::Scene;
+use riseg::scene::{POSES_FILE, Scene};
 
 const W: u32 = 24;
 const H: u32 = 16;
@@ -359,6 +359,57 @@ fn write_poses(
 }
 
 #[test]
+fn a_generated_dataset_has_a_ceiling_from_its_own_poses_and_none_without_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, scene) = copy_of_generated(dir.path());
+    assert!(scene.join(POSES_FILE).is_file(), "riseg gen writes poses");
+    let json = dir.path().join("metrics.json");
+    let out = eval_cli(&data, &data, Some(&json));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(!stderr.contains("not scored"), "{stderr}");
+    let report: EvalReport =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let ceiling = report.ceiling.as_ref().expect("a ceiling in the JSON");
+    let pushes: Vec<_> = ceiling.iter().map(|row| (row.push, row.images)).collect();
+    assert_eq!(pushes, [(0, 1), (1, 1)], "{report:?}");
+
+    // Without poses.json there is no ceiling, and a note names the scene.
+    std::fs::remove_file(scene.join(POSES_FILE)).unwrap();
+    let out = eval_cli(&data, &data, Some(&json));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "motion ceiling not scored: {} has no poses.json",
+            scene.display()
+        )),
+        "{stderr}"
+    );
+    let report: EvalReport =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(report.ceiling.is_none(), "{report:?}");
+    assert_eq!(
+        eval::dataset_poses(&data).unwrap(),
+        eval::DatasetPoses::Missing(scene.clone())
+    );
+    // Asked anyway, the ceiling names the missing file.
+    let mut segmenter = riseg::segment::ClassicalSegmenter::new(Default::default()).unwrap();
+    let e = eval::evaluate_ceiling(
+        core::slice::from_ref(&scene),
+        &mut segmenter,
+        &riseg::ceiling::CeilingParams::DEFAULT,
+        || {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert_eq!(
+        e,
+        format!("{}: not found", scene.join(POSES_FILE).display())
+    );
+}
+
+#[test]
 fn with_poses_eval_scores_the_motion_ceiling_beside_the_pushes() {
     let dir = tempfile::tempdir().unwrap();
     let (data, scene) = copy_of_generated(dir.path());
@@ -446,10 +497,10 @@ fn a_malformed_or_mismatched_poses_json_is_an_error_naming_it() {
         r#"{"frames": [[{"label": 1, "translation_m": [0, 0], "rotation_xyzw": [0, 0, 0, 1]}]]}"#,
     )
     .unwrap();
-    expect_error("malformed poses file");
+    expect_error("malformed JSON");
 
     write_poses(&scene, &labels, 1, |_| 0.0);
-    expect_error("1 frames of poses, but the scene has 2 frames");
+    expect_error("1 frames of poses, expected 2");
 
     let first = *labels.first().unwrap();
     let fewer: BTreeSet<u16> = labels.iter().copied().filter(|&l| l != first).collect();

@@ -13,6 +13,7 @@ use std::{
 
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use riseg::{
+    camera::SceneReplay,
     imageio::{FlowImage, Gray16Image, RgbImage, write_gray16},
     scene::{ObjectPose, PushAction, Scene, SceneCamera, SceneError, list_scenes},
 };
@@ -160,6 +161,25 @@ fn assert_bad(root: &Path, case: &str, damage: impl FnOnce(&Path), file: &str, p
         named.display()
     );
     assert!(message.contains(problem), "{case}: {message}");
+}
+
+#[test]
+fn replayed_frames_carry_the_scenes_labels_and_poses() {
+    let scene = small_scene();
+    for t in 0..scene.frames() {
+        let frame = SceneReplay::frame(&scene, t).unwrap();
+        assert_eq!(frame.truth.as_ref(), scene.labels.as_ref().unwrap().get(t));
+        assert_eq!(
+            frame.truth_poses.as_ref(),
+            scene.poses.as_ref().unwrap().get(t)
+        );
+    }
+    assert!(SceneReplay::frame(&scene, scene.frames()).is_none());
+    let mut bare = scene;
+    bare.labels = None;
+    bare.poses = None;
+    let frame = SceneReplay::frame(&bare, 1).unwrap();
+    assert_eq!((frame.truth, frame.truth_poses), (None, None));
 }
 
 #[test]
@@ -381,6 +401,11 @@ fn every_bad_folder_is_an_error_naming_the_file() {
             "poses_frames",
             poses_of(&[frame(&[&good]), frame(&[&good])]),
             "2 frames of poses, expected 3",
+        ),
+        (
+            "poses_empty",
+            poses_of(&[]),
+            "0 frames of poses, expected 3",
         ),
         (
             "poses_label0",

@@ -280,23 +280,64 @@ fn merge_close_groups(
     for (g, p) in parent.iter_mut().take(count).enumerate() {
         *p = g as u32;
     }
-    // Each group joins its nearest larger group of the segment within the resolution (a
-    // tree, like quick shift): a union of every close pair would let a small group that
-    // sits between two motions chain them together.
+    // 1. Moving groups of one segment closer than the resolution unite: one body whose
+    //    twists flow noise spread (a rolling ball) stays one group.
+    let close = |a: &GroupInfo, b: &GroupInfo| {
+        a.label == b.label && a.twist.distance(&b.twist, cfg.length_scale_m) <= resolution_m
+    };
     for (g, a) in groups.iter().enumerate().take(count) {
-        let larger = |b: &GroupInfo, h: usize| {
-            (b.frames, u32::MAX - h as u32) > (a.frames, u32::MAX - g as u32)
+        for (h, b) in groups.iter().enumerate().take(count).skip(g + 1) {
+            if a.moving && b.moving && close(a, b) {
+                union(parent, g, h);
+            }
+        }
+    }
+    // 2. Each set then joins its nearest larger set of the segment within the resolution,
+    //    compared by the twist of its largest group (a tree, like quick shift): a union of
+    //    every close pair would let a small static group next to a moving one chain a
+    //    moving body into the still rest of its segment.
+    let set_of = |parent: &mut [u32], g: usize| {
+        let root = find(parent, g) as usize;
+        let mut frames = 0u32;
+        let mut largest = g;
+        for (h, b) in groups.iter().enumerate().take(count) {
+            if find(parent, h) as usize == root {
+                frames = frames.saturating_add(b.frames);
+                if groups.get(largest).is_none_or(|l| b.frames > l.frames) {
+                    largest = h;
+                }
+            }
+        }
+        (root, frames, largest)
+    };
+    for g in 0..count {
+        let (root, frames, largest) = set_of(parent, g);
+        if root != g {
+            continue;
+        }
+        let Some(a) = groups.get(largest).copied() else {
+            continue;
         };
-        let nearest = groups
-            .iter()
-            .enumerate()
-            .take(count)
-            .filter(|&(h, b)| h != g && b.label == a.label && larger(b, h))
-            .map(|(h, b)| (a.twist.distance(&b.twist, cfg.length_scale_m), h))
-            .filter(|&(d, _)| d <= resolution_m)
-            .min_by(|x, y| x.0.total_cmp(&y.0));
-        if let Some((_, h)) = nearest {
-            union(parent, g, h);
+        let mut nearest: Option<(Real, usize)> = None;
+        for h in 0..count {
+            let (other, other_frames, other_largest) = set_of(parent, h);
+            let Some(b) = groups.get(other_largest) else {
+                continue;
+            };
+            if other != h
+                || other == root
+                || (other_frames, u32::MAX - other as u32) <= (frames, u32::MAX - root as u32)
+                || !close(&a, b)
+            {
+                continue;
+            }
+            let d = a.twist.distance(&b.twist, cfg.length_scale_m);
+            if nearest.is_none_or(|(best, _)| d < best) {
+                nearest = Some((d, other));
+            }
+        }
+        if let Some((_, other)) = nearest {
+            union(parent, root, other);
         }
     }
     let mut next = 0u32;

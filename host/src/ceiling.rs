@@ -627,8 +627,8 @@ mod tests {
         assert!(!super::moved([&a0, &shift(0.0009)], &p));
         assert!(super::moved([&a0, &shift(0.0011)], &p));
         // Turning in place moves no centre: only the angle decides.
-        assert!(!super::moved([&a0, &spin(0.4)], &p));
-        assert!(super::moved([&a0, &spin(0.6)], &p));
+        assert!(!super::moved([&a0, &spin(1.4)], &p));
+        assert!(super::moved([&a0, &spin(1.6)], &p));
     }
 
     #[test]

@@ -12,7 +12,8 @@
 //!   tool's start to its end), bottom left the body frames of the step that led to this
 //!   frame coloured by twist group (grey: frames in no group or in a static group),
 //!   bottom right the optical flow from the previous frame on the Middlebury colour wheel;
-//! - `report.md`: the per-push table and the pictures.
+//! - `report.md`: the per-push table, the pictures, and where the scene stands among the
+//!   23 scenes of its family in `riseg bench` (objects found: lowest, median, highest).
 //!
 //! Files are written atomically; the folder is created if missing and files of an earlier
 //! demo in it are replaced.
@@ -24,7 +25,7 @@ use nalgebra::Point3;
 use riseg_core::{Config, Intrinsics, action::Push};
 
 use crate::{
-    bench::score_frame,
+    bench::{BenchConfig, SceneResult, run_bench, score_frame},
     draw::{Clip, arrow, dot, label_colour, line, overlay_labels},
     episode::{Decision, EpisodeFrame, Stop},
     eval::PushReport,
@@ -122,7 +123,9 @@ pub fn run_demo(
         frames,
         stop: summary.stop,
     };
-    let md = markdown(&report);
+    let mut md = markdown(&report);
+    md.push('\n');
+    md.push_str(&bench_spread(&report)?);
     let path = out.join("report.md");
     write_atomic(&path, md.as_bytes()).with_context(|| format!("writing {}", path.display()))?;
     Ok(report)
@@ -280,6 +283,84 @@ pub fn markdown(report: &DemoReport) -> String {
         let _ = writeln!(md, "![frame {}]({})\n", f.t, f.picture);
     }
     md
+}
+
+/// Scenes of the family the demo's report compares its scene with (`riseg bench
+/// --layout L --scenes 23 --seed 1`).
+pub const SPREAD_SCENES: usize = 23;
+
+/// How the demo's scene compares with the bench over [`SPREAD_SCENES`] scenes of its
+/// family (seed 1), as a markdown section: for the static segmentation at push 0 and
+/// for RISeg and the motion ceiling after the last push of each scene, the lowest,
+/// median and highest share of objects found (overlap F > 75) over the scenes.
+///
+/// # Errors
+/// The bench's errors.
+pub fn bench_spread(report: &DemoReport) -> anyhow::Result<String> {
+    let cfg = BenchConfig {
+        layout: report.layout,
+        ..BenchConfig::new(SPREAD_SCENES, 1)
+    };
+    let (_, scenes) = run_bench(&cfg, |_| {})?;
+    let found = |m: Option<&crate::metrics::ImageMetrics>| {
+        m.map_or(0.0, |m| 100.0 * m.objects_detected_share)
+    };
+    let column = |pick: &dyn Fn(&SceneResult) -> f64| {
+        let mut v: Vec<f64> = scenes.iter().map(pick).collect();
+        v.sort_by(f64::total_cmp);
+        let at = |q: f64| {
+            v.get(((v.len().max(1) - 1) as f64 * q).round() as usize)
+                .copied()
+        };
+        (at(0.0), at(0.5), at(1.0))
+    };
+    let rows = [
+        (
+            "static, push 0",
+            column(&|r: &SceneResult| found(r.static_metrics.first())),
+        ),
+        (
+            "RISeg, last push",
+            column(&|r: &SceneResult| found(r.riseg_metrics.last())),
+        ),
+        (
+            "ceiling, last push",
+            column(&|r: &SceneResult| found(r.ceiling_metrics.last())),
+        ),
+    ];
+    let this = |pick: fn(&DemoFrame) -> f64| report.frames.last().map_or(0.0, pick);
+    let mine = [
+        report
+            .frames
+            .first()
+            .map_or(0.0, |f| f.static_row.objects_f75_pct),
+        this(|f| f.riseg_row.objects_f75_pct),
+    ];
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "## This scene among {SPREAD_SCENES} {} scenes
+
+Objects found (overlap F > 75,          percent) over the scenes of `riseg bench --layout {} --scenes {SPREAD_SCENES}          --seed 1`, each after its own last push:
+",
+        report.layout, report.layout
+    );
+    let _ = writeln!(md, "| | lowest | median | highest | this scene |");
+    let _ = writeln!(md, "|---|---:|---:|---:|---:|");
+    for (i, (name, (lo, mid, hi))) in rows.iter().enumerate() {
+        let fmt = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.0}"));
+        let this_scene = mine
+            .get(i)
+            .map_or_else(|| "-".into(), |v| format!("{v:.0}"));
+        let _ = writeln!(
+            md,
+            "| {name} | {} | {} | {} | {this_scene} |",
+            fmt(*lo),
+            fmt(*mid),
+            fmt(*hi)
+        );
+    }
+    Ok(md)
 }
 
 /// What a scene of `layout` holds, for people.

@@ -21,7 +21,9 @@
 //!    split; others are left as they are.
 //!    Groups that did not move all count as one static group with the identity motion, so
 //!    frames that stayed still never split a segment between them.
-//! 4. **Grow.** In a split segment, regions grow breadth-first from the seeds to
+//! 4. **Grow.** A moving group's rigid motion `M` is the least-squares fit (Kabsch) to the
+//!    points of all its frames at `t` and `t+1`. In a split segment, regions grow
+//!    breadth-first from the seeds to
 //!    4-neighbours whose observed flow matches the flow the group's rigid motion predicts
 //!    (back-project the source pixel at `t`, move it by the group's `M`, project; residual
 //!    within [`Config::grow_tol_px`]). A pixel that several groups explain goes to the one
@@ -43,7 +45,7 @@
 //! Output labels are distinct positive ids, increasing in scan order of the final segments
 //! (with gaps where small fragments merged away); background is `0`.
 
-use nalgebra::{Point3, Translation3};
+use nalgebra::{Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 use crate::{
     Config, Error, ImageView, Pose,
@@ -240,9 +242,10 @@ pub fn correct_mask(
     let seeds = &mut scratch.seeds[..seed_count];
     let motions = &mut scratch.motions[..groups.groups.len()];
     let to_camera = Translation3::from(groups.space_origin.coords);
-    for (m, g) in motions.iter_mut().zip(groups.groups) {
+    for (id, (m, g)) in motions.iter_mut().zip(groups.groups).enumerate() {
         *m = if g.moving {
-            to_camera * g.twist.exp() * to_camera.inverse()
+            fit_motion(groups, id)
+                .unwrap_or_else(|| to_camera * g.twist.exp() * to_camera.inverse())
         } else {
             Pose::identity()
         };
@@ -464,6 +467,49 @@ impl Grid {
         .into_iter()
         .flatten()
     }
+}
+
+/// The rigid motion (camera frame) that best carries the points of every frame of group
+/// `id` from `t` to `t+1`, by least squares (Kabsch: the SVD of the points' cross-covariance,
+/// with the reflection removed). One frame's twist spans only its own triangle, a few
+/// centimetres; extrapolated across a pack its rotation noise misses the flow by pixels,
+/// so growth would stop short. `None` with fewer than two frames or a degenerate fit.
+fn fit_motion(groups: &FrameGroups<'_>, id: usize) -> Option<Pose> {
+    let members = || {
+        groups
+            .frames
+            .iter()
+            .zip(groups.frame_group)
+            .filter(move |(_, g)| usize::from(**g) == id)
+            .flat_map(|(f, _)| f.p_t.iter().zip(f.p_t1.iter()))
+    };
+    let (mut n, mut sum_t, mut sum_t1) = (0.0, Vector3::zeros(), Vector3::zeros());
+    for (a, b) in members() {
+        n += 1.0;
+        sum_t += a.coords;
+        sum_t1 += b.coords;
+    }
+    if n < 6.0 {
+        return None;
+    }
+    let (c_t, c_t1) = (sum_t / n, sum_t1 / n);
+    let mut cross = Matrix3::zeros();
+    for (a, b) in members() {
+        cross += (a.coords - c_t) * (b.coords - c_t1).transpose();
+    }
+    let svd = cross.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    let mut v = v_t.transpose();
+    if (v * u.transpose()).determinant() < 0.0 {
+        v.column_mut(2).neg_mut();
+    }
+    let rotation = Rotation3::from_matrix_unchecked(v * u.transpose());
+    let rotation = UnitQuaternion::from_rotation_matrix(&rotation);
+    let translation = c_t1 - rotation * c_t;
+    let pose = Pose::from_parts(Translation3::from(translation), rotation);
+    let finite = pose.translation.vector.iter().all(|x| x.is_finite())
+        && pose.rotation.coords.iter().all(|x| x.is_finite());
+    finite.then_some(pose)
 }
 
 /// Per-segment scratch arrays.

@@ -339,10 +339,10 @@ pub fn bench_spread(report: &DemoReport) -> anyhow::Result<String> {
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "## This scene among {SPREAD_SCENES} {} scenes
-
-Objects found (overlap F > 75,          percent) over the scenes of `riseg bench --layout {} --scenes {SPREAD_SCENES}          --seed 1`, each after its own last push:
-",
+        "## This scene among {SPREAD_SCENES} {} scenes\n\nObjects found (overlap F > 75, \
+         percent) over the scenes of `riseg bench --layout {} --scenes {SPREAD_SCENES} \
+         --seed 1`, each after its own last push (the ceiling of this scene is not \
+         computed: -):\n",
         report.layout, report.layout
     );
     let _ = writeln!(md, "| | lowest | median | highest | this scene |");

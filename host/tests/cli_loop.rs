@@ -29,6 +29,28 @@ fn the_default_command_is_the_demo_and_it_writes_pictures_and_a_report() {
         })
         .collect();
     assert!(!pictures.is_empty(), "{report}");
+    // The scene is placed among the 23 scenes of its family: three rows of lowest <=
+    // median <= highest objects found.
+    assert!(
+        report.contains("## This scene among 23 packed scenes"),
+        "{report}"
+    );
+    let spread: Vec<[f64; 3]> = report
+        .lines()
+        .filter(|l| {
+            l.starts_with("| static, push 0")
+                || l.starts_with("| RISeg")
+                || l.starts_with("| ceiling")
+        })
+        .map(|l| {
+            let cells: Vec<f64> = l.split('|').filter_map(|c| c.trim().parse().ok()).collect();
+            [cells[0], cells[1], cells[2]]
+        })
+        .collect();
+    assert_eq!(spread.len(), 3, "{report}");
+    for [lo, mid, hi] in spread {
+        assert!(lo <= mid && mid <= hi && hi <= 100.0, "{report}");
+    }
     for p in pictures {
         let img = image::open(demo.join(p)).expect("picture").to_rgb8();
         assert_eq!(img.dimensions(), (1280, 960), "{p}");

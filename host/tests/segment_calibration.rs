@@ -16,16 +16,14 @@
 //! Both print per-scene numbers (`cargo test --test segment_calibration -- --nocapture`).
 //!
 //! What the numbers say (seeds 0..40, the default window, which the heatmap's contact,
-//! neck and step rules and FindAction's region and pair rules were tuned on): 97.3 % band
-//! coverage, FindAction right in 22 of 23 merged scenes. On seeds 40..80
-//! (`RISEG_CALIB_FIRST_SEED=40`, not tuned on) coverage is 96.9 % and FindAction is right
-//! in 18 of 22. Before FindAction clustered certain pixels by connected regions and
+//! neck, step and pack rules and FindAction's region and pair rules were tuned on): 95.9 %
+//! band coverage, FindAction right in 23 of 23 merged scenes. On seeds 40..80
+//! (`RISEG_CALIB_FIRST_SEED=40`, not tuned on) coverage is 96.6 % and FindAction is right
+//! in 21 of 22. Before FindAction clustered certain pixels by connected regions and
 //! required pairs to touch, it was right in 17 of 23 and 15 of 22, and would fail the
 //! 80 % bar. Given a heatmap drawn from the ground truth itself (certain inside objects,
 //! uncertain within 6 px of a touching neighbour), FindAction is right in 22 of 23 and 22
-//! of 22, so the misses left come mostly from the heatmap: three of the five over both
-//! windows pick two certain regions of one object that an uncertain band (such as a pack
-//! cut) runs through.
+//! of 22.
 
 use std::collections::HashSet;
 

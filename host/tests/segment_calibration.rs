@@ -18,7 +18,8 @@
 //! What the numbers say (seeds 0..40, the default window, which the heatmap's contact,
 //! neck, step and pack rules and FindAction's region and pair rules were tuned on): 95.9 %
 //! band coverage, FindAction right in 23 of 23 merged scenes. On seeds 40..80
-//! (`RISEG_CALIB_FIRST_SEED=40`, not tuned on) coverage is 96.6 % and FindAction is right
+//! (`RISEG_CALIB_FIRST_SEED=40`, not tuned on but looked at during development) coverage is
+//! 96.6 % and FindAction is right
 //! in 21 of 22. Before FindAction clustered certain pixels by connected regions and
 //! required pairs to touch, it was right in 17 of 23 and 15 of 22, and would fail the
 //! 80 % bar. Given a heatmap drawn from the ground truth itself (certain inside objects,

@@ -471,9 +471,11 @@ impl Grid {
 
 /// The rigid motion (camera frame) that best carries the points of every frame of group
 /// `id` from `t` to `t+1`, by least squares (Kabsch: the SVD of the points' cross-covariance,
-/// with the reflection removed). One frame's twist spans only its own triangle, a few
-/// centimetres; extrapolated across a pack its rotation noise misses the flow by pixels,
-/// so growth would stop short. `None` with fewer than two frames or a degenerate fit.
+/// with the reflection removed), refitted once without the points it misses by more than
+/// `max(1 mm, 2.5 × the mean miss)` (a few frames at a boundary would pull the fit). One
+/// frame's twist spans only its own triangle, a few centimetres; extrapolated across a
+/// pack its rotation noise misses the flow by pixels, so growth would stop short. `None`
+/// with fewer than two frames or a degenerate fit.
 fn fit_motion(groups: &FrameGroups<'_>, id: usize) -> Option<Pose> {
     let members = || {
         groups
@@ -483,8 +485,24 @@ fn fit_motion(groups: &FrameGroups<'_>, id: usize) -> Option<Pose> {
             .filter(move |(_, g)| usize::from(**g) == id)
             .flat_map(|(f, _)| f.p_t.iter().zip(f.p_t1.iter()))
     };
-    let (mut n, mut sum_t, mut sum_t1) = (0.0, Vector3::zeros(), Vector3::zeros());
+    let miss = |m: &Pose, a: &Point3<Real>, b: &Point3<Real>| (m * a - b).norm();
+    let first = kabsch(members())?;
+    let (mut count, mut total) = (0.0, 0.0);
     for (a, b) in members() {
+        count += 1.0;
+        total += miss(&first, a, b);
+    }
+    let limit = (2.5 * total / count).max(1e-3);
+    kabsch(members().filter(|(a, b)| miss(&first, a, b) <= limit)).or(Some(first))
+}
+
+/// Least-squares rigid motion carrying each `a` to its `b` (module docs of
+/// [`fit_motion`]); `None` with fewer than six pairs or a fit that is not finite.
+fn kabsch<'p>(
+    pairs: impl Iterator<Item = (&'p Point3<Real>, &'p Point3<Real>)> + Clone,
+) -> Option<Pose> {
+    let (mut n, mut sum_t, mut sum_t1) = (0.0, Vector3::zeros(), Vector3::zeros());
+    for (a, b) in pairs.clone() {
         n += 1.0;
         sum_t += a.coords;
         sum_t1 += b.coords;
@@ -494,7 +512,7 @@ fn fit_motion(groups: &FrameGroups<'_>, id: usize) -> Option<Pose> {
     }
     let (c_t, c_t1) = (sum_t / n, sum_t1 / n);
     let mut cross = Matrix3::zeros();
-    for (a, b) in members() {
+    for (a, b) in pairs {
         cross += (a.coords - c_t) * (b.coords - c_t1).transpose();
     }
     let svd = cross.svd(true, true);

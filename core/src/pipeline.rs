@@ -601,7 +601,11 @@ pub(crate) mod tests {
 
     #[test]
     fn two_segments_moving_with_one_twist_merge() {
-        let (out, report) = over_segmented_slide(&Config::PAPER);
+        let on = Config {
+            merge_twist_m: 0.002,
+            ..Config::PAPER
+        };
+        let (out, report) = over_segmented_slide(&on);
         assert!(report.grouping.count >= 2, "{report:?}");
         assert_eq!(report.mask.merged_segments, 1, "{report:?}");
         assert_eq!(distinct_labels(&out), 1, "{report:?}");
@@ -712,7 +716,12 @@ pub(crate) mod tests {
             .collect();
         let r2 = render(&second, 320, 240);
         let merged_t1: Vec<u16> = r2.labels_t1.iter().map(|&l| u16::from(l != 0)).collect();
-        let (out, report) = step_with(&r2, &split, &merged_t1, &Config::PAPER, |_| {});
+        // With the over-segmentation merge on: it must not undo a split made by motion.
+        let merge_on = Config {
+            merge_twist_m: 0.002,
+            ..Config::PAPER
+        };
+        let (out, report) = step_with(&r2, &split, &merged_t1, &merge_on, |_| {});
         assert_eq!(distinct_labels(&out), 2, "{report:?}");
         for iou in group_ious(&r2.labels_t1, &out, &[&[1, 3], &[2, 4]]) {
             assert!(iou >= 0.95, "IoU {iou:.3} ({report:?})");

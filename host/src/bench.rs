@@ -501,14 +501,7 @@ mod tests {
     #![allow(clippy::unwrap_used, reason = "tests: a panic is the failure report")]
 
     use super::*;
-
-    /// 12×3 image: objects 1, 2, 3 in a row, 3 pixels wide each, flush.
-    const W: usize = 12;
-    const H: usize = 3;
-
-    fn truth() -> Vec<u16> {
-        [0, 1, 1, 1, 2, 2, 2, 3, 3, 3, 0, 0].repeat(H)
-    }
+    use crate::ceiling::fixture::{H, W, at, row_of_three as truth, start};
 
     /// The static segmentation merges 1 and 2 (segment 7) and finds 3 alone (segment 8).
     fn static_labels() -> Vec<u16> {
@@ -516,17 +509,6 @@ mod tests {
             .iter()
             .map(|&l| [0, 7, 7, 8][usize::from(l)])
             .collect()
-    }
-
-    fn at(label: u16, x_m: f32) -> ObjectPose {
-        ObjectPose {
-            label,
-            world_from_object: Pose::translation(x_m, 0.0, 0.02),
-        }
-    }
-
-    fn start() -> Vec<ObjectPose> {
-        vec![at(1, 0.0), at(2, 0.05), at(3, 0.10)]
     }
 
     /// The poses after a push that moves each object `l` by `dx_m(l)` along x.

@@ -364,23 +364,46 @@ pub(crate) fn poses_by_label(
     Ok(by_label)
 }
 
+/// A three-object scene shared by the tests of the ceiling and of the bench.
+#[cfg(test)]
+pub(crate) mod fixture {
+    use riseg_core::Pose;
+
+    use crate::scene::ObjectPose;
+
+    /// Width of [`row_of_three`], pixels.
+    pub(crate) const W: usize = 12;
+    /// Height of [`row_of_three`], pixels.
+    pub(crate) const H: usize = 3;
+
+    /// 12×3 image: three 3-pixel-wide objects in a row (labels 1, 2, 3), flush, with
+    /// background columns at both ends.
+    pub(crate) fn row_of_three() -> Vec<u16> {
+        let row: [u16; W] = [0, 1, 1, 1, 2, 2, 2, 3, 3, 3, 0, 0];
+        row.repeat(H)
+    }
+
+    /// Object `label` at `x_m` along the world x axis, unrotated.
+    pub(crate) fn at(label: u16, x_m: f32) -> ObjectPose {
+        ObjectPose {
+            label,
+            world_from_object: Pose::translation(x_m, 0.0, 0.0),
+        }
+    }
+
+    /// The three objects 5 cm apart.
+    pub(crate) fn start() -> Vec<ObjectPose> {
+        vec![at(1, 0.0), at(2, 0.05), at(3, 0.10)]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, reason = "tests: a panic is the failure report")]
 
     use nalgebra::Vector3;
 
-    use super::*;
-
-    /// 12×3 image: three 3-pixel-wide objects in a row (labels 1, 2, 3), flush, with
-    /// background columns at both ends.
-    const W: usize = 12;
-    const H: usize = 3;
-
-    fn row_of_three() -> Vec<u16> {
-        let row: [u16; W] = [0, 1, 1, 1, 2, 2, 2, 3, 3, 3, 0, 0];
-        row.repeat(H)
-    }
+    use super::{fixture::*, *};
 
     /// The static segmentation that merges every object into segment 7.
     fn all_merged() -> Vec<u16> {
@@ -388,17 +411,6 @@ mod tests {
             .iter()
             .map(|&l| if l == 0 { 0 } else { 7 })
             .collect()
-    }
-
-    fn at(label: u16, x_m: f32) -> ObjectPose {
-        ObjectPose {
-            label,
-            world_from_object: Pose::translation(x_m, 0.0, 0.0),
-        }
-    }
-
-    fn start() -> Vec<ObjectPose> {
-        vec![at(1, 0.0), at(2, 0.05), at(3, 0.10)]
     }
 
     /// `poses` with `label` moved by `dx_m` along x.

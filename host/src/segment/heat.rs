@@ -331,12 +331,6 @@ fn pack_cuts(
         // its width) divide it where the objects really meet: no guessed cuts then.
         let m_per_px = m.depth_sum_m / m.count * f64::from(inp.inv_focal);
         let seam_px = 0.5 * short_m / m_per_px;
-        if std::env::var_os("RISEG_DEBUG_PACK").is_some() {
-            eprintln!(
-                "seg {label} {long_m:.3}x{short_m:.3} oversized {oversized} sources {} seam {seam_px:.0}",
-                m.sources
-            );
-        }
         if !oversized || f64::from(m.sources) >= seam_px {
             continue;
         }

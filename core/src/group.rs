@@ -107,6 +107,9 @@ pub struct Grouping {
     /// The distance at which the KDE splits near from far pairs, metres (`None`: no
     /// valley, every moving pair counted as near).
     pub split_m: Option<Real>,
+    /// Groups added by splitting groups that two rigid motions explain
+    /// ([`crate::split`]); `0` from [`group_frames`] alone.
+    pub mixed_splits: usize,
 }
 
 /// GroupBFIFs: assigns each frame a group id (`< count`) or [`NO_GROUP`].
@@ -260,7 +263,11 @@ pub fn group_frames(
         frame_group,
         groups.get_mut(..count).unwrap_or(&mut []),
     );
-    Ok(Grouping { count, split_m })
+    Ok(Grouping {
+        count,
+        split_m,
+        mixed_splits: 0,
+    })
 }
 
 /// Merges groups of one segment whose twists are closer than `resolution_m` (the KDE

@@ -16,6 +16,7 @@ pub mod math;
 pub mod pipeline;
 pub mod rng;
 pub mod se3;
+pub mod split;
 pub mod synth;
 
 pub use camera::Intrinsics;

@@ -45,7 +45,7 @@
 //! Output labels are distinct positive ids, increasing in scan order of the final segments
 //! (with gaps where small fragments merged away); background is `0`.
 
-use nalgebra::{Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Point3, Translation3};
 
 use crate::{
     Config, Error, ImageView, Pose,
@@ -54,6 +54,7 @@ use crate::{
     group::GroupInfo,
     image::valid_depth,
     math::{Real, round},
+    se3::fit_rigid_motion,
 };
 
 /// Most segments one step can hold (labels are `u16`, `0` is background).
@@ -486,48 +487,14 @@ fn fit_motion(groups: &FrameGroups<'_>, id: usize) -> Option<Pose> {
             .flat_map(|(f, _)| f.p_t.iter().zip(f.p_t1.iter()))
     };
     let miss = |m: &Pose, a: &Point3<Real>, b: &Point3<Real>| (m * a - b).norm();
-    let first = kabsch(members())?;
+    let first = fit_rigid_motion(members())?;
     let (mut count, mut total) = (0.0, 0.0);
     for (a, b) in members() {
         count += 1.0;
         total += miss(&first, a, b);
     }
     let limit = (2.5 * total / count).max(1e-3);
-    kabsch(members().filter(|(a, b)| miss(&first, a, b) <= limit)).or(Some(first))
-}
-
-/// Least-squares rigid motion carrying each `a` to its `b` (module docs of
-/// [`fit_motion`]); `None` with fewer than six pairs or a fit that is not finite.
-fn kabsch<'p>(
-    pairs: impl Iterator<Item = (&'p Point3<Real>, &'p Point3<Real>)> + Clone,
-) -> Option<Pose> {
-    let (mut n, mut sum_t, mut sum_t1) = (0.0, Vector3::zeros(), Vector3::zeros());
-    for (a, b) in pairs.clone() {
-        n += 1.0;
-        sum_t += a.coords;
-        sum_t1 += b.coords;
-    }
-    if n < 6.0 {
-        return None;
-    }
-    let (c_t, c_t1) = (sum_t / n, sum_t1 / n);
-    let mut cross = Matrix3::zeros();
-    for (a, b) in pairs {
-        cross += (a.coords - c_t) * (b.coords - c_t1).transpose();
-    }
-    let svd = cross.svd(true, true);
-    let (u, v_t) = (svd.u?, svd.v_t?);
-    let mut v = v_t.transpose();
-    if (v * u.transpose()).determinant() < 0.0 {
-        v.column_mut(2).neg_mut();
-    }
-    let rotation = Rotation3::from_matrix_unchecked(v * u.transpose());
-    let rotation = UnitQuaternion::from_rotation_matrix(&rotation);
-    let translation = c_t1 - rotation * c_t;
-    let pose = Pose::from_parts(Translation3::from(translation), rotation);
-    let finite = pose.translation.vector.iter().all(|x| x.is_finite())
-        && pose.rotation.coords.iter().all(|x| x.is_finite());
-    finite.then_some(pose)
+    fit_rigid_motion(members().filter(|(a, b)| miss(&first, a, b) <= limit)).or(Some(first))
 }
 
 /// Per-segment scratch arrays.

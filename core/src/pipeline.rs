@@ -1,7 +1,8 @@
 //! One UpdateMask step (Algorithm 3) over a caller-owned [`Workspace`], and the loop state
 //! of Algorithm 1. No I/O: the caller brings images and executes pushes.
 //!
-//! A step is CreateFrames → CalcBFIFs → GroupBFIFs → CorrectMask; each stage is also
+//! A step is CreateFrames → CalcBFIFs → GroupBFIFs (twist groups, then groups that two
+//! rigid motions explain split: [`crate::split`]) → CorrectMask; each stage is also
 //! callable on its own ([`create_frames`], [`compute_twists`], [`group_frames`],
 //! [`correct_mask`]) for per-stage timing or display.
 
@@ -11,6 +12,7 @@ use crate::{
     frames::{BodyFrame, FrameSample, FrameSet, MotionInput, compute_twists, create_frames},
     group::{GroupInfo, GroupScratch, GroupScratchLen, Grouping, group_frames},
     mask::{FrameGroups, MaskReport, MaskScratch, MaskScratchLen, correct_mask},
+    split::split_mixed_groups,
 };
 
 /// All scratch and intermediate buffers of one step. Intermediate results (frames, twists,
@@ -189,7 +191,18 @@ pub fn update_mask_observed(
         *l = f.label;
     }
     let frame_group = ws.frame_group.get_mut(..count).unwrap_or(&mut []);
-    let grouping = group_frames(twists, labels, cfg, &mut ws.group, frame_group, ws.groups)?;
+    let mut grouping = group_frames(twists, labels, cfg, &mut ws.group, frame_group, ws.groups)?;
+    let twist_groups = grouping.count;
+    grouping.count = split_mixed_groups(
+        frame_list,
+        &frames.space_origin,
+        cfg,
+        frame_group,
+        ws.groups,
+        twist_groups,
+        ws.group.parent,
+    );
+    grouping.mixed_splits = grouping.count - twist_groups;
     on_stage(Stage::Grouping);
     let groups = FrameGroups {
         frames: frame_list,

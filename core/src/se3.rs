@@ -13,7 +13,9 @@
 //! All transcendentals go through `libm` (see `math`), so results are bit-identical on
 //! every target.
 
-use nalgebra::{Isometry3, Matrix3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{
+    Isometry3, Matrix3, Point3, Quaternion, Rotation3, Translation3, UnitQuaternion, Vector3,
+};
 
 use crate::math::{Real, atan2, sin_cos, sqrt};
 
@@ -165,6 +167,41 @@ pub fn spatial_twist(space_from_body_t: &Pose, space_from_body_t1: &Pose) -> Twi
 /// Smallest `sin` of the angle at the origin of a frame's triangle that counts as
 /// non-collinear in [`try_frame_from_points`].
 pub const MIN_FRAME_SIN: Real = 1e-3;
+
+/// The least-squares rigid motion carrying each point `a` to its `b` (Kabsch: the SVD of
+/// the points' cross-covariance, with the reflection removed); `None` with fewer than six
+/// pairs or a fit that is not finite.
+pub fn fit_rigid_motion<'p>(
+    pairs: impl Iterator<Item = (&'p Point3<Real>, &'p Point3<Real>)> + Clone,
+) -> Option<Pose> {
+    let (mut n, mut sum_t, mut sum_t1) = (0.0, Vector3::zeros(), Vector3::zeros());
+    for (a, b) in pairs.clone() {
+        n += 1.0;
+        sum_t += a.coords;
+        sum_t1 += b.coords;
+    }
+    if n < 6.0 {
+        return None;
+    }
+    let (c_t, c_t1) = (sum_t / n, sum_t1 / n);
+    let mut cross = Matrix3::zeros();
+    for (a, b) in pairs {
+        cross += (a.coords - c_t) * (b.coords - c_t1).transpose();
+    }
+    let svd = cross.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    let mut v = v_t.transpose();
+    if (v * u.transpose()).determinant() < 0.0 {
+        v.column_mut(2).neg_mut();
+    }
+    let rotation = Rotation3::from_matrix_unchecked(v * u.transpose());
+    let rotation = UnitQuaternion::from_rotation_matrix(&rotation);
+    let translation = c_t1 - rotation * c_t;
+    let pose = Pose::from_parts(Translation3::from(translation), rotation);
+    let finite = pose.translation.vector.iter().all(|x| x.is_finite())
+        && pose.rotation.coords.iter().all(|x| x.is_finite());
+    finite.then_some(pose)
+}
 
 /// The body frame on three points: origin `p0`, x towards `p1`, z normal to the plane of
 /// the three points, `y = z × x`. Returns `frame_from_body` in the frame the points are in,

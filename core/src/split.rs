@@ -1,0 +1,499 @@
+//! GroupBFIFs, second pass: split a group whose frames two rigid motions explain far
+//! better than one.
+//!
+//! One frame's twist comes from three points a few centimetres apart, so its noise is a
+//! few millimetres (depth noise alone gives about 1.5 mm at 0.6 m); two bodies whose
+//! motions differ by less than a few times that (a pushed box that turned 5 degrees more
+//! than the box beside it, a neighbour dragged 4 mm) fall into one twist group. A group's
+//! hundreds of points pin its least-squares motion down to a fraction of a millimetre,
+//! so the points can tell what single twists cannot.
+//!
+//! Contract, for each group (including the ones this pass creates), in id order:
+//! - Fit one rigid motion to all points of its frames (at `t` and `t+1`, camera frame).
+//!   Start two parts from the sign of each frame's mean miss along the misses' principal
+//!   axis, then alternate: fit each part's motion, move each frame to the motion that
+//!   misses its three points least, until nothing moves (at most [`MAX_ROUNDS`]).
+//! - Keep the split only when each part has at least [`MIN_PART_FRAMES_PER_GROUP`] times
+//!   [`Config::min_group_frames`] frames, the two motions move either part's centroid
+//!   apart by at least [`MIN_MOTION_GAP_M`], the mean miss falls to at most
+//!   [`MAX_MISS_RATIO`] of the single motion's, and the parts are places: frames mostly
+//!   have their nearest frames in their own part ([`MIN_COHERENCE`]).
+//! - The part with the larger motion at its centroid gets a new group id (appended); the
+//!   other keeps the id. Each part's twist is its fitted motion in the space frame; a
+//!   part is moving when its twist reaches [`Config::static_below_m`] or its motion moves
+//!   its centroid by [`MIN_MOTION_GAP_M`].
+//!
+//! Frames of [`NO_GROUP`](crate::group::NO_GROUP) are never touched. Deterministic, no
+//! heap, no panics: every index is checked.
+
+use nalgebra::{Matrix3, Point3, Translation3, Vector3};
+
+use crate::{
+    Config, Pose, Twist,
+    frames::BodyFrame,
+    group::{GroupInfo, NO_GROUP},
+    math::Real,
+    se3::fit_rigid_motion,
+};
+
+/// Most reassignment rounds per split.
+pub const MAX_ROUNDS: usize = 8;
+/// Each part needs this many times [`Config::min_group_frames`] frames (the seeds
+/// CorrectMask asks of a group in a segment).
+pub const MIN_PART_FRAMES_PER_GROUP: u32 = 3;
+/// Smallest distance the two parts' motions put between one point (either part's
+/// centroid), metres: about twice the depth noise at 0.6 m.
+pub const MIN_MOTION_GAP_M: Real = 0.002;
+/// The split must bring the mean miss of the points to at most this share of the single
+/// motion's.
+pub const MAX_MISS_RATIO: Real = 0.9;
+/// Each part must be a place, not a scatter: on average at least this share of a
+/// frame's [`NEIGHBOURS`] nearest frames of the group (by position at `t`) fall in its
+/// part. Two bodies give nearly 1; splitting one body's noise gives about one half.
+pub const MIN_COHERENCE: Real = 0.8;
+/// Neighbours per frame in the coherence test.
+pub const NEIGHBOURS: usize = 4;
+
+/// Splits the groups `groups[..count]` of `frames` (module docs), appending new groups
+/// after `count` while `groups` has room; `side` is scratch with one entry per frame.
+/// Returns the new group count.
+pub fn split_mixed_groups(
+    frames: &[BodyFrame],
+    space_origin: &Point3<Real>,
+    cfg: &Config,
+    frame_group: &mut [u16],
+    groups: &mut [GroupInfo],
+    count: usize,
+    side: &mut [u32],
+) -> usize {
+    let n = frames.len().min(frame_group.len()).min(side.len());
+    let (frames, frame_group, side) = (
+        frames.get(..n).unwrap_or(&[]),
+        frame_group.get_mut(..n).unwrap_or(&mut []),
+        side.get_mut(..n).unwrap_or(&mut []),
+    );
+    let capacity = groups.len().min(usize::from(NO_GROUP));
+    let mut count = count.min(capacity);
+    let mut g = 0;
+    while g < count {
+        if count < capacity
+            && let Some(new) = split_one(frames, cfg, frame_group, side, g)
+        {
+            let new_id = count as u16;
+            for (fg, &s) in frame_group.iter_mut().zip(side.iter()) {
+                if usize::from(*fg) == g && s == 1 {
+                    *fg = new_id;
+                }
+            }
+            let label = groups.get(g).map_or(0, |info| info.label);
+            let to_space = Translation3::from(-space_origin.coords);
+            let info = |motion: &Pose, frames: u32, moved_m: Real| {
+                let twist = Twist::log(&(to_space * motion * to_space.inverse()));
+                let moving = twist.norm_squared(cfg.length_scale_m)
+                    >= cfg.static_below_m * cfg.static_below_m
+                    || moved_m >= MIN_MOTION_GAP_M;
+                GroupInfo {
+                    frames,
+                    twist,
+                    moving,
+                    label,
+                }
+            };
+            if let Some(slot) = groups.get_mut(g) {
+                *slot = info(&new.keep.motion, new.keep.frames, new.keep.moved_m);
+            }
+            if let Some(slot) = groups.get_mut(count) {
+                *slot = info(&new.split.motion, new.split.frames, new.split.moved_m);
+            }
+            count += 1;
+            continue; // look at the smaller group again: a third body may remain
+        }
+        g += 1;
+    }
+    count
+}
+
+/// One part of an accepted split.
+#[derive(Debug, Clone, Copy)]
+struct Part {
+    motion: Pose,
+    frames: u32,
+    /// How far the part's motion moves its centroid, metres.
+    moved_m: Real,
+}
+
+/// An accepted split of one group: `keep` stays, `split` (frames with `side == 1`) gets
+/// a new id.
+#[derive(Debug, Clone, Copy)]
+struct Split {
+    keep: Part,
+    split: Part,
+}
+
+/// Tries to split group `g` (module docs); on success `side` marks the frames of the part
+/// that moves away with `1`.
+fn split_one(
+    frames: &[BodyFrame],
+    cfg: &Config,
+    frame_group: &[u16],
+    side: &mut [u32],
+    g: usize,
+) -> Option<Split> {
+    let is_member = |i: usize| frame_group.get(i).is_some_and(|&fg| usize::from(fg) == g);
+    let min_part = MIN_PART_FRAMES_PER_GROUP.saturating_mul(cfg.min_group_frames.max(1));
+    let members = (0..frames.len()).filter(|&i| is_member(i)).count() as u32;
+    if members < 2 * min_part {
+        return None;
+    }
+    let one = fit_rigid_motion(part_points(frames, frame_group, g, None, side))?;
+    let miss = |m: &Pose, f: &BodyFrame| -> Vector3<Real> {
+        f.p_t
+            .iter()
+            .zip(&f.p_t1)
+            .fold(Vector3::zeros(), |acc, (a, b)| acc + (m * a - b))
+            / 3.0
+    };
+    let frame_miss = |m: &Pose, f: &BodyFrame| -> Real {
+        f.p_t
+            .iter()
+            .zip(&f.p_t1)
+            .map(|(a, b)| (m * a - b).norm())
+            .sum::<Real>()
+            / 3.0
+    };
+    // Principal axis of the misses: the first part is the frames on its positive side.
+    let (mut mean, mut total_miss) = (Vector3::zeros(), 0.0);
+    for f in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
+        mean += miss(&one, f.1);
+        total_miss += frame_miss(&one, f.1);
+    }
+    let count = members as Real;
+    mean /= count;
+    let mut cov = Matrix3::zeros();
+    for f in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
+        let e = miss(&one, f.1) - mean;
+        cov += e * e.transpose();
+    }
+    let axis = principal_axis(&cov)?;
+    for (i, (s, f)) in side.iter_mut().zip(frames).enumerate() {
+        *s = u32::from(is_member(i) && (miss(&one, f) - mean).dot(&axis) > 0.0);
+    }
+    let mut fits = (one, one);
+    for _ in 0..MAX_ROUNDS {
+        fits = (
+            fit_rigid_motion(part_points(frames, frame_group, g, Some(0), side))?,
+            fit_rigid_motion(part_points(frames, frame_group, g, Some(1), side))?,
+        );
+        let mut changed = false;
+        for (i, (s, f)) in side.iter_mut().zip(frames).enumerate() {
+            if !is_member(i) {
+                continue;
+            }
+            let best = u32::from(frame_miss(&fits.1, f) < frame_miss(&fits.0, f));
+            changed |= best != *s;
+            *s = best;
+        }
+        if !changed {
+            break;
+        }
+    }
+    // The final parts, their sizes, centroids and misses.
+    let (mut sizes, mut centroid, mut split_miss) = ([0u32; 2], [Vector3::zeros(); 2], 0.0);
+    for (i, (&s, f)) in side.iter().zip(frames).enumerate() {
+        if !is_member(i) {
+            continue;
+        }
+        let k = usize::from(s == 1);
+        let m = if s == 1 { &fits.1 } else { &fits.0 };
+        sizes[k] += 1;
+        centroid[k] += f.p_t.iter().fold(Vector3::zeros(), |acc, p| acc + p.coords) / 3.0;
+        split_miss += frame_miss(m, f);
+    }
+    if sizes[0] < min_part || sizes[1] < min_part {
+        return None;
+    }
+    let c = [
+        Point3::from(centroid[0] / sizes[0] as Real),
+        Point3::from(centroid[1] / sizes[1] as Real),
+    ];
+    let gap_m = c
+        .iter()
+        .map(|p| (fits.0 * p - fits.1 * p).norm())
+        .fold(0.0, Real::max);
+    if gap_m < MIN_MOTION_GAP_M
+        || split_miss > MAX_MISS_RATIO * total_miss
+        || coherence(frames, &is_member, side) < MIN_COHERENCE
+    {
+        return None;
+    }
+    let moved = |m: &Pose, p: &Point3<Real>| (m * p - p).norm();
+    let parts = [
+        Part {
+            motion: fits.0,
+            frames: sizes[0],
+            moved_m: moved(&fits.0, &c[0]),
+        },
+        Part {
+            motion: fits.1,
+            frames: sizes[1],
+            moved_m: moved(&fits.1, &c[1]),
+        },
+    ];
+    // The part that moved more leaves: flip the sides if that is part 0.
+    if parts[0].moved_m > parts[1].moved_m {
+        for (i, s) in side.iter_mut().enumerate() {
+            if is_member(i) {
+                *s ^= 1;
+            }
+        }
+        return Some(Split {
+            keep: parts[1],
+            split: parts[0],
+        });
+    }
+    Some(Split {
+        keep: parts[0],
+        split: parts[1],
+    })
+}
+
+/// The mean share of each member frame's [`NEIGHBOURS`] nearest member frames (first
+/// points at `t`) that share its `side`; `O(m²)` for `m` members.
+fn coherence(frames: &[BodyFrame], is_member: &impl Fn(usize) -> bool, side: &[u32]) -> Real {
+    let (mut same, mut total) = (0u32, 0u32);
+    for (i, (fi, &si)) in frames.iter().zip(side).enumerate() {
+        if !is_member(i) {
+            continue;
+        }
+        let mut nearest = [(Real::INFINITY, 0u32); NEIGHBOURS];
+        for (j, (fj, &sj)) in frames.iter().zip(side).enumerate() {
+            if j == i || !is_member(j) {
+                continue;
+            }
+            let d = (fi.p_t[0] - fj.p_t[0]).norm_squared();
+            // Insert into the sorted list of the nearest so far.
+            let mut entry = (d, sj);
+            for slot in nearest.iter_mut() {
+                if entry.0 < slot.0 {
+                    core::mem::swap(slot, &mut entry);
+                }
+            }
+        }
+        for &(d, s) in &nearest {
+            if d.is_finite() {
+                total += 1;
+                same += u32::from(s == si);
+            }
+        }
+    }
+    if total == 0 {
+        return 0.0;
+    }
+    same as Real / total as Real
+}
+
+/// The point pairs (`t`, `t+1`) of the frames of group `g`, of one part (`side`) or all.
+fn part_points<'a>(
+    frames: &'a [BodyFrame],
+    frame_group: &'a [u16],
+    g: usize,
+    part: Option<u32>,
+    side: &'a [u32],
+) -> impl Iterator<Item = (&'a Point3<Real>, &'a Point3<Real>)> + Clone + 'a {
+    frames
+        .iter()
+        .zip(frame_group)
+        .zip(side)
+        .filter(move |((_, fg), s)| usize::from(**fg) == g && part.is_none_or(|p| **s == p))
+        .flat_map(|((f, _), _)| f.p_t.iter().zip(f.p_t1.iter()))
+}
+
+/// Unit eigenvector of the largest eigenvalue of a symmetric 3×3 matrix, by power
+/// iteration from the column of largest norm; `None` for a zero or non-finite matrix.
+fn principal_axis(m: &Matrix3<Real>) -> Option<Vector3<Real>> {
+    let mut v = (0..3)
+        .map(|k| m.column(k).into_owned())
+        .max_by(|a, b| a.norm_squared().total_cmp(&b.norm_squared()))?;
+    for _ in 0..32 {
+        let next = m * v;
+        let norm = next.norm();
+        if !(norm.is_finite() && norm > 0.0) {
+            return None;
+        }
+        v = next / norm;
+    }
+    Some(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{UnitQuaternion, Vector3};
+
+    use super::*;
+    use crate::rng::Pcg32;
+
+    /// A frame on the plane z = 0.6 m around `(x, y)`, carried by `motion`, with `noise_m`
+    /// of uniform noise on every coordinate at `t+1`.
+    fn frame(rng: &mut Pcg32, x: Real, y: Real, motion: &Pose, noise_m: Real) -> BodyFrame {
+        let p_t = [
+            Point3::new(x, y, 0.6),
+            Point3::new(x + 0.02, y, 0.6),
+            Point3::new(x, y + 0.02, 0.6),
+        ];
+        let mut noisy = |p: &Point3<Real>| {
+            let mut e = || (rng.unit() - 0.5) * 2.0 * noise_m;
+            motion * p + Vector3::new(e(), e(), e())
+        };
+        let p_t1 = [noisy(&p_t[0]), noisy(&p_t[1]), noisy(&p_t[2])];
+        BodyFrame {
+            p_t,
+            p_t1,
+            label: 1,
+            ..BodyFrame::EMPTY
+        }
+    }
+
+    /// `per_body` frames on each of two boxes side by side (x < 0: body 0, x > 0: body
+    /// 1), all in group 0; returns the frames and each frame's body.
+    fn two_boxes(
+        motions: [Pose; 2],
+        noise_m: Real,
+        per_body: usize,
+    ) -> ([BodyFrame; 200], [u8; 200]) {
+        let mut rng = Pcg32::new(7);
+        let mut frames = [BodyFrame::EMPTY; 200];
+        let mut body = [0u8; 200];
+        for (i, (f, b)) in frames
+            .iter_mut()
+            .zip(body.iter_mut())
+            .take(2 * per_body)
+            .enumerate()
+        {
+            *b = u8::from(i % 2 == 1);
+            let x = rng.unit() * 0.04 - if *b == 0 { 0.045 } else { -0.005 };
+            let y = rng.unit() * 0.06 - 0.03;
+            *f = frame(&mut rng, x, y, &motions[usize::from(*b)], noise_m);
+        }
+        (frames, body)
+    }
+
+    fn run(frames: &[BodyFrame]) -> (usize, [u16; 200], [GroupInfo; 8]) {
+        let mut frame_group = [0u16; 200];
+        let mut groups = [GroupInfo::default(); 8];
+        groups[0] = GroupInfo {
+            frames: frames.len() as u32,
+            moving: true,
+            label: 1,
+            ..GroupInfo::default()
+        };
+        let mut side = [0u32; 200];
+        let count = split_mixed_groups(
+            frames,
+            &Point3::new(0.0, 0.0, 0.6),
+            &Config::PAPER,
+            &mut frame_group[..frames.len()],
+            &mut groups,
+            1,
+            &mut side,
+        );
+        (count, frame_group, groups)
+    }
+
+    fn push(dx_m: Real, yaw_deg: Real) -> Pose {
+        Pose::from_parts(
+            Translation3::new(dx_m, 0.0, 0.0),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw_deg.to_radians()),
+        )
+    }
+
+    #[test]
+    fn two_boxes_pushed_alike_but_turned_apart_become_two_groups() {
+        // Both pushed 2 cm; one turned 5 degrees more (about 4 mm of twist: within the
+        // twist noise of single frames, far beyond the noise of a fit to 300 points).
+        let (frames, body) = two_boxes([push(0.02, 0.0), push(0.02, 5.0)], 0.0015, 80);
+        let frames = &frames[..160];
+        let (count, frame_group, groups) = run(frames);
+        assert_eq!(count, 2);
+        // Each box's frames land in one group, and the two boxes in different ones.
+        let group_of = |b: u8| {
+            let mut n = [0usize; 2];
+            for (g, x) in frame_group.iter().zip(&body).take(160) {
+                if *x == b && *g < 2 {
+                    n[usize::from(*g)] += 1;
+                }
+            }
+            n
+        };
+        let (a, b) = (group_of(0), group_of(1));
+        let pure = |n: [usize; 2]| n[0].max(n[1]);
+        assert_ne!(a[0] > a[1], b[0] > b[1], "{a:?} {b:?}");
+        assert!(pure(a) >= 78 && pure(b) >= 78, "{a:?} {b:?}");
+        assert!(groups[0].moving && groups[1].moving);
+        assert_eq!(groups[0].frames + groups[1].frames, 160);
+    }
+
+    #[test]
+    fn a_neighbour_dragged_a_few_millimetres_leaves_the_still_group() {
+        let (frames, body) = two_boxes([Pose::identity(), push(0.004, 0.0)], 0.0015, 80);
+        let frames = &frames[..160];
+        let mut frame_group = [0u16; 200];
+        let mut groups = [GroupInfo::default(); 8];
+        groups[0] = GroupInfo {
+            frames: 160,
+            label: 1,
+            ..GroupInfo::default()
+        };
+        let mut side = [0u32; 200];
+        let count = split_mixed_groups(
+            frames,
+            &Point3::new(0.0, 0.0, 0.6),
+            &Config::PAPER,
+            &mut frame_group[..160],
+            &mut groups,
+            1,
+            &mut side,
+        );
+        assert_eq!(count, 2);
+        // The still box keeps the still group; the dragged one moves.
+        for (g, b) in frame_group.iter().zip(&body).take(160) {
+            assert_eq!(*g, u16::from(*b));
+        }
+        assert!(!groups[0].moving && groups[1].moving);
+    }
+
+    #[test]
+    fn one_body_with_noisy_points_is_not_split() {
+        for noise_m in [0.0005, 0.0015, 0.003] {
+            let (frames, _) = two_boxes([push(0.02, 2.0), push(0.02, 2.0)], noise_m, 80);
+            let (count, frame_group, _) = run(&frames[..160]);
+            assert_eq!(count, 1, "noise {noise_m}");
+            assert!(frame_group.iter().all(|&g| g == 0));
+        }
+    }
+
+    #[test]
+    fn bodies_closer_than_the_motion_gap_stay_one_group() {
+        let (frames, _) = two_boxes([push(0.02, 0.0), push(0.021, 0.0)], 0.0005, 80);
+        assert_eq!(run(&frames[..160]).0, 1);
+    }
+
+    #[test]
+    fn small_groups_and_full_group_tables_are_left_alone() {
+        let (frames, _) = two_boxes([push(0.02, 0.0), push(0.02, 10.0)], 0.0005, 10);
+        assert_eq!(run(&frames[..20]).0, 1, "20 frames: two parts need 15 each");
+        let (frames, _) = two_boxes([push(0.02, 0.0), push(0.02, 10.0)], 0.0005, 80);
+        let mut frame_group = [0u16; 160];
+        let mut groups = [GroupInfo::default(); 1];
+        let mut side = [0u32; 160];
+        let count = split_mixed_groups(
+            &frames[..160],
+            &Point3::new(0.0, 0.0, 0.6),
+            &Config::PAPER,
+            &mut frame_group,
+            &mut groups,
+            1,
+            &mut side,
+        );
+        assert_eq!(count, 1, "no room for a second group");
+    }
+}

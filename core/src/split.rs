@@ -10,8 +10,8 @@
 //!
 //! Contract, for each group (including the ones this pass creates), in id order:
 //! - Fit one rigid motion to all points of its frames (at `t` and `t+1`, camera frame).
-//!   Start two parts from the sign of each frame's mean miss along the misses' principal
-//!   axis, then alternate: fit each part's motion, move each frame to the motion that
+//!   Start two parts from the sign of each frame's mean miss (averaged with its nearest
+//!   frames') along the misses' principal axis, then alternate: fit each part's motion, move each frame to the motion that
 //!   misses its three points least, until nothing moves (at most [`MAX_ROUNDS`]).
 //! - Keep the split only when each part has at least [`MIN_PART_FRAMES_PER_GROUP`] times
 //!   [`Config::min_group_frames`] frames, the two motions move either part's centroid
@@ -42,8 +42,10 @@ pub const MAX_ROUNDS: usize = 8;
 /// CorrectMask asks of a group in a segment).
 pub const MIN_PART_FRAMES_PER_GROUP: u32 = 3;
 /// Smallest distance the two parts' motions put between one point (either part's
-/// centroid), metres: about twice the depth noise at 0.6 m.
-pub const MIN_MOTION_GAP_M: Real = 0.002;
+/// centroid), metres: the motion ceiling's floor (`riseg bench`), below which two
+/// motions count as one. A part's fit rests on hundreds of points, so its noise is a
+/// small share of this even with the depth noise of a D415 (about 1 mm per point).
+pub const MIN_MOTION_GAP_M: Real = 0.001;
 /// The split must bring the mean miss of the points to at most this share of the single
 /// motion's.
 pub const MAX_MISS_RATIO: Real = 0.9;
@@ -53,6 +55,8 @@ pub const MAX_MISS_RATIO: Real = 0.9;
 pub const MIN_COHERENCE: Real = 0.8;
 /// Neighbours per frame in the coherence test.
 pub const NEIGHBOURS: usize = 4;
+/// Neighbours a frame's miss is averaged with before the first split.
+const SMOOTH_NEIGHBOURS: usize = 8;
 
 /// Splits the groups `groups[..count]` of `frames` (module docs), appending new groups
 /// after `count` while `groups` has room; `side` is scratch with one entry per frame.
@@ -161,22 +165,34 @@ fn split_one(
             .sum::<Real>()
             / 3.0
     };
-    // Principal axis of the misses: the first part is the frames on its positive side.
+    // Principal axis of the misses, each averaged with its frame's nearest neighbours
+    // (one frame's miss is mostly depth noise, a neighbourhood's is its body's): the
+    // first part is the frames on its positive side.
+    let smoothed = |i: usize, f: &BodyFrame| {
+        let near = nearest::<SMOOTH_NEIGHBOURS>(frames, &is_member, i);
+        let (sum, n) = near
+            .iter()
+            .filter_map(|&(_, j)| frames.get(j))
+            .fold((miss(&one, f), 1.0), |(sum, n), fj| {
+                (sum + miss(&one, fj), n + 1.0)
+            });
+        sum / n
+    };
     let (mut mean, mut total_miss) = (Vector3::zeros(), 0.0);
-    for f in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
-        mean += miss(&one, f.1);
-        total_miss += frame_miss(&one, f.1);
+    for (i, f) in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
+        mean += smoothed(i, f);
+        total_miss += frame_miss(&one, f);
     }
     let count = members as Real;
     mean /= count;
     let mut cov = Matrix3::zeros();
-    for f in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
-        let e = miss(&one, f.1) - mean;
+    for (i, f) in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
+        let e = smoothed(i, f) - mean;
         cov += e * e.transpose();
     }
     let axis = principal_axis(&cov)?;
     for (i, (s, f)) in side.iter_mut().zip(frames).enumerate() {
-        *s = u32::from(is_member(i) && (miss(&one, f) - mean).dot(&axis) > 0.0);
+        *s = u32::from(is_member(i) && (smoothed(i, f) - mean).dot(&axis) > 0.0);
     }
     let mut fits = (one, one);
     for _ in 0..MAX_ROUNDS {
@@ -257,32 +273,18 @@ fn split_one(
     })
 }
 
-/// The mean share of each member frame's [`NEIGHBOURS`] nearest member frames (first
-/// points at `t`) that share its `side`; `O(m²)` for `m` members.
+/// The mean share of each member frame's [`NEIGHBOURS`] nearest member frames that share
+/// its `side`; `O(m²)` for `m` members.
 fn coherence(frames: &[BodyFrame], is_member: &impl Fn(usize) -> bool, side: &[u32]) -> Real {
     let (mut same, mut total) = (0u32, 0u32);
-    for (i, (fi, &si)) in frames.iter().zip(side).enumerate() {
+    for (i, &si) in side.iter().enumerate().take(frames.len()) {
         if !is_member(i) {
             continue;
         }
-        let mut nearest = [(Real::INFINITY, 0u32); NEIGHBOURS];
-        for (j, (fj, &sj)) in frames.iter().zip(side).enumerate() {
-            if j == i || !is_member(j) {
-                continue;
-            }
-            let d = (fi.p_t[0] - fj.p_t[0]).norm_squared();
-            // Insert into the sorted list of the nearest so far.
-            let mut entry = (d, sj);
-            for slot in nearest.iter_mut() {
-                if entry.0 < slot.0 {
-                    core::mem::swap(slot, &mut entry);
-                }
-            }
-        }
-        for &(d, s) in &nearest {
-            if d.is_finite() {
+        for &(_, j) in &nearest::<NEIGHBOURS>(frames, is_member, i) {
+            if let Some(&sj) = side.get(j) {
                 total += 1;
-                same += u32::from(s == si);
+                same += u32::from(sj == si);
             }
         }
     }
@@ -290,6 +292,32 @@ fn coherence(frames: &[BodyFrame], is_member: &impl Fn(usize) -> bool, side: &[u
         return 0.0;
     }
     same as Real / total as Real
+}
+
+/// The `K` member frames nearest frame `i` (by their first points at `t`), nearest
+/// first, as `(squared distance, index)`; missing ones have index `usize::MAX`. `O(m)`.
+fn nearest<const K: usize>(
+    frames: &[BodyFrame],
+    is_member: &impl Fn(usize) -> bool,
+    i: usize,
+) -> [(Real, usize); K] {
+    let mut near = [(Real::INFINITY, usize::MAX); K];
+    let Some(fi) = frames.get(i) else {
+        return near;
+    };
+    for (j, fj) in frames.iter().enumerate() {
+        if j == i || !is_member(j) {
+            continue;
+        }
+        // Insertion into the sorted list of the nearest so far.
+        let mut entry = ((fi.p_t[0] - fj.p_t[0]).norm_squared(), j);
+        for slot in &mut near {
+            if entry.0 < slot.0 {
+                core::mem::swap(slot, &mut entry);
+            }
+        }
+    }
+    near
 }
 
 /// The point pairs (`t`, `t+1`) of the frames of group `g`, of one part (`side`) or all.
@@ -473,7 +501,7 @@ mod tests {
 
     #[test]
     fn bodies_closer_than_the_motion_gap_stay_one_group() {
-        let (frames, _) = two_boxes([push(0.02, 0.0), push(0.021, 0.0)], 0.0005, 80);
+        let (frames, _) = two_boxes([push(0.02, 0.0), push(0.0205, 0.0)], 0.0005, 80);
         assert_eq!(run(&frames[..160]).0, 1);
     }
 

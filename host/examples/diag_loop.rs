@@ -278,6 +278,63 @@ fn one(
                         v.len()
                     );
                 }
+                // Would the truth partition of each two-object group pass split.rs?
+                for (g, (_, h)) in &hist {
+                    let objs: Vec<u16> = h
+                        .iter()
+                        .filter(|(_, n)| **n >= 15)
+                        .map(|(l, _)| *l)
+                        .collect();
+                    if g.is_none() || objs.len() != 2 {
+                        continue;
+                    }
+                    let member = |gf: &riseg::tracker::GroupedFrame, l: Option<u16>| {
+                        let [u, v] = gf.frame.px_t[0];
+                        gf.group == *g
+                            && l.is_none_or(|l| prev_truth[v as usize * w + u as usize] == l)
+                    };
+                    let pts = |l: Option<u16>| {
+                        step.frames
+                            .iter()
+                            .filter(move |gf| member(gf, l))
+                            .flat_map(|gf| gf.frame.p_t.iter().zip(gf.frame.p_t1.iter()))
+                    };
+                    let fit = |l| {
+                        riseg_core::se3::fit_rigid_motion(pts(l)).expect("a group of 15+ frames")
+                    };
+                    let one = fit(None);
+                    let parts = [fit(Some(objs[0])), fit(Some(objs[1]))];
+                    let mean_miss = |m: &riseg_core::Pose, l: Option<u16>| {
+                        let (mut s, mut n) = (0.0, 0.0);
+                        for (a, b) in pts(l) {
+                            s += (m * a - b).norm();
+                            n += 1.0;
+                        }
+                        (s, n)
+                    };
+                    let (s1, n1) = mean_miss(&one, None);
+                    let (sa, na) = mean_miss(&parts[0], Some(objs[0]));
+                    let (sb, nb) = mean_miss(&parts[1], Some(objs[1]));
+                    let cen = |l| {
+                        let (mut c, mut n) = (nalgebra::Vector3::zeros(), 0.0);
+                        for (a, _) in pts(Some(l)) {
+                            c += a.coords;
+                            n += 1.0;
+                        }
+                        nalgebra::Point3::from(c / n)
+                    };
+                    let gap = [cen(objs[0]), cen(objs[1])]
+                        .iter()
+                        .map(|c| (parts[0] * c - parts[1] * c).norm())
+                        .fold(0.0f32, f32::max);
+                    println!(
+                        "   group {g:?} truth split {objs:?}: miss one {:.2} mm, split {:.2} mm (ratio {:.2}), gap {:.2} mm",
+                        1e3 * s1 / n1,
+                        1e3 * (sa + sb) / (na + nb),
+                        (sa + sb) / (na + nb) / (s1 / n1),
+                        1e3 * gap
+                    );
+                }
                 for (g, (moving, h)) in &hist {
                     println!("   group {g:?} moving {moving}: frames per object {h:?}");
                 }

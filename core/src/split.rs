@@ -11,8 +11,9 @@
 //! Contract, for each group (including the ones this pass creates), in id order:
 //! - Fit one rigid motion to all points of its frames (at `t` and `t+1`, camera frame).
 //!   Start two parts from the sign of each frame's mean miss (averaged with its nearest
-//!   frames') along the misses' principal axis, then alternate: fit each part's motion, move each frame to the motion that
-//!   misses its three points least, until nothing moves (at most [`MAX_ROUNDS`]).
+//!   frames') along the misses' principal axis, then alternate: fit each part's motion,
+//!   move each frame to the motion that misses its three points least, until nothing
+//!   moves (at most [`MAX_ROUNDS`]). Nearness is between the frames' first pixels at `t`.
 //! - Keep the split only when each part has at least [`MIN_PART_FRAMES_PER_GROUP`] times
 //!   [`Config::min_group_frames`] frames, the two motions move either part's centroid
 //!   apart by at least [`MIN_MOTION_GAP_M`], the mean miss falls to at most
@@ -178,18 +179,16 @@ fn split_one(
             });
         sum / n
     };
-    let (mut mean, mut total_miss) = (Vector3::zeros(), 0.0);
+    let (mut sum, mut outer, mut total_miss) = (Vector3::zeros(), Matrix3::zeros(), 0.0);
     for (i, f) in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
-        mean += smoothed(i, f);
+        let e = smoothed(i, f);
+        sum += e;
+        outer += e * e.transpose();
         total_miss += frame_miss(&one, f);
     }
     let count = members as Real;
-    mean /= count;
-    let mut cov = Matrix3::zeros();
-    for (i, f) in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
-        let e = smoothed(i, f) - mean;
-        cov += e * e.transpose();
-    }
+    let mean = sum / count;
+    let cov = outer / count - mean * mean.transpose();
     let axis = principal_axis(&cov)?;
     for (i, (s, f)) in side.iter_mut().zip(frames).enumerate() {
         *s = u32::from(is_member(i) && (smoothed(i, f) - mean).dot(&axis) > 0.0);
@@ -274,7 +273,7 @@ fn split_one(
 }
 
 /// The mean share of each member frame's [`NEIGHBOURS`] nearest member frames that share
-/// its `side`; `O(m²)` for `m` members.
+/// its `side`.
 fn coherence(frames: &[BodyFrame], is_member: &impl Fn(usize) -> bool, side: &[u32]) -> Real {
     let (mut same, mut total) = (0u32, 0u32);
     for (i, &si) in side.iter().enumerate().take(frames.len()) {
@@ -294,8 +293,12 @@ fn coherence(frames: &[BodyFrame], is_member: &impl Fn(usize) -> bool, side: &[u
     same as Real / total as Real
 }
 
-/// The `K` member frames nearest frame `i` (by their first points at `t`), nearest
-/// first, as `(squared distance, index)`; missing ones have index `usize::MAX`. `O(m)`.
+/// The `K` member frames nearest frame `i` (by their first pixels at `t`), nearest
+/// first, as `(squared distance, index)`; missing ones have index `usize::MAX`.
+///
+/// CreateFrames writes frames in row order, so the search walks out from `i` in both
+/// directions and stops once the row gap alone exceeds the `K`-th distance so far: about
+/// `O(√m)` per frame instead of `O(m)`. Frames out of row order only make it less exact.
 fn nearest<const K: usize>(
     frames: &[BodyFrame],
     is_member: &impl Fn(usize) -> bool,
@@ -305,16 +308,36 @@ fn nearest<const K: usize>(
     let Some(fi) = frames.get(i) else {
         return near;
     };
-    for (j, fj) in frames.iter().enumerate() {
-        if j == i || !is_member(j) {
-            continue;
+    let [u, v] = fi.px_t[0];
+    let (u, v) = (u as Real, v as Real);
+    let mut visit = |j: usize, near: &mut [(Real, usize); K]| -> bool {
+        let Some(fj) = frames.get(j) else {
+            return false;
+        };
+        let (du, dv) = (fj.px_t[0][0] as Real - u, fj.px_t[0][1] as Real - v);
+        let worst = near.last().map_or(Real::INFINITY, |w| w.0);
+        if dv * dv > worst {
+            return false;
         }
-        // Insertion into the sorted list of the nearest so far.
-        let mut entry = ((fi.p_t[0] - fj.p_t[0]).norm_squared(), j);
-        for slot in &mut near {
-            if entry.0 < slot.0 {
-                core::mem::swap(slot, &mut entry);
+        if is_member(j) {
+            // Insertion into the sorted list of the nearest so far.
+            let mut entry = (du * du + dv * dv, j);
+            for slot in near.iter_mut() {
+                if entry.0 < slot.0 {
+                    core::mem::swap(slot, &mut entry);
+                }
             }
+        }
+        true
+    };
+    for j in (0..i).rev() {
+        if !visit(j, &mut near) {
+            break;
+        }
+    }
+    for j in i + 1..frames.len() {
+        if !visit(j, &mut near) {
+            break;
         }
     }
     near
@@ -373,7 +396,14 @@ mod tests {
             motion * p + Vector3::new(e(), e(), e())
         };
         let p_t1 = [noisy(&p_t[0]), noisy(&p_t[1]), noisy(&p_t[2])];
+        let px = |p: &Point3<Real>| {
+            [
+                (600.0 * p.x / p.z + 320.0) as u32,
+                (600.0 * p.y / p.z + 240.0) as u32,
+            ]
+        };
         BodyFrame {
+            px_t: [px(&p_t[0]), px(&p_t[1]), px(&p_t[2])],
             p_t,
             p_t1,
             label: 1,
@@ -401,6 +431,16 @@ mod tests {
             let x = rng.unit() * 0.04 - if *b == 0 { 0.045 } else { -0.005 };
             let y = rng.unit() * 0.06 - 0.03;
             *f = frame(&mut rng, x, y, &motions[usize::from(*b)], noise_m);
+        }
+        // In row order, as CreateFrames writes them.
+        let n = 2 * per_body;
+        for i in 1..n {
+            let mut j = i;
+            while j > 0 && frames[j - 1].px_t[0][1] > frames[j].px_t[0][1] {
+                frames.swap(j - 1, j);
+                body.swap(j - 1, j);
+                j -= 1;
+            }
         }
         (frames, body)
     }

@@ -24,7 +24,7 @@
 //!   part is moving when its twist reaches [`Config::static_below_m`] or its motion moves
 //!   its centroid by [`MIN_MOTION_GAP_M`].
 //!
-//! Frames of [`NO_GROUP`](crate::group::NO_GROUP) are never touched. Deterministic, no
+//! Frames of [`NO_GROUP`] are never touched. Deterministic, no
 //! heap, no panics: every index is checked.
 
 use nalgebra::{Matrix3, Point3, Translation3, Vector3};
@@ -310,7 +310,7 @@ fn nearest<const K: usize>(
     };
     let [u, v] = fi.px_t[0];
     let (u, v) = (u as Real, v as Real);
-    let mut visit = |j: usize, near: &mut [(Real, usize); K]| -> bool {
+    let visit = |j: usize, near: &mut [(Real, usize); K]| -> bool {
         let Some(fj) = frames.get(j) else {
             return false;
         };

@@ -23,6 +23,8 @@
 //!   other keeps the id. Each part's twist is its fitted motion in the space frame; a
 //!   part is moving when its twist reaches [`Config::static_below_m`] or its motion moves
 //!   its centroid by [`MIN_MOTION_GAP_M`].
+//! - Last, every group still not moving whose fitted motion moves its centroid by
+//!   [`MIN_MOTION_GAP_M`] is moving, with that motion's twist.
 //!
 //! Frames of [`NO_GROUP`] are never touched. Deterministic, no
 //! heap, no panics: every index is checked.
@@ -114,6 +116,29 @@ pub fn split_mixed_groups(
             continue; // look at the smaller group again: a third body may remain
         }
         g += 1;
+    }
+    // A still group whose points moved by the motion gap moved: a box dragged 3 mm has
+    // a twist below the noise floor, but its fit is certain, and CorrectMask must grow
+    // it by that motion, not the identity.
+    let to_space = Translation3::from(-space_origin.coords);
+    for (id, info) in groups.iter_mut().enumerate().take(count) {
+        if info.moving {
+            continue;
+        }
+        let all = part_points(frames, frame_group, id, None, side);
+        let (mut centroid, mut n) = (Vector3::zeros(), 0.0);
+        for (a, _) in all.clone() {
+            centroid += a.coords;
+            n += 1.0;
+        }
+        let Some(motion) = fit_rigid_motion(all) else {
+            continue;
+        };
+        let c = Point3::from(centroid / n);
+        if (motion * c - c).norm() >= MIN_MOTION_GAP_M {
+            info.moving = true;
+            info.twist = Twist::log(&(to_space * motion * to_space.inverse()));
+        }
     }
     count
 }
@@ -527,6 +552,36 @@ mod tests {
             assert_eq!(*g, u16::from(*b));
         }
         assert!(!groups[0].moving && groups[1].moving);
+    }
+
+    #[test]
+    fn a_still_group_that_moved_three_millimetres_is_moving_and_a_still_one_is_not() {
+        for (dx_m, moving) in [(0.003, true), (0.0, false)] {
+            let (frames, _) = two_boxes([push(dx_m, 0.0), push(dx_m, 0.0)], 0.0015, 80);
+            let mut frame_group = [0u16; 160];
+            let mut groups = [GroupInfo::default(); 4];
+            groups[0] = GroupInfo {
+                frames: 160,
+                label: 1,
+                ..GroupInfo::default()
+            };
+            let mut side = [0u32; 160];
+            let count = split_mixed_groups(
+                &frames[..160],
+                &Point3::new(0.0, 0.0, 0.6),
+                &Config::PAPER,
+                &mut frame_group,
+                &mut groups,
+                1,
+                &mut side,
+            );
+            assert_eq!(count, 1, "one body");
+            assert_eq!(groups[0].moving, moving, "{dx_m} m");
+            if moving {
+                let v = groups[0].twist.v;
+                assert!((v.x - dx_m).abs() < 5e-4 && v.y.abs() < 5e-4, "{v:?}");
+            }
+        }
     }
 
     #[test]

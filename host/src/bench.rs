@@ -42,7 +42,7 @@ use crate::{
         CeilingFrame, CeilingParams, MotionCeiling, moved, poses_by_label, same_motion,
         static_segments,
     },
-    episode::{EpisodeError, EpisodeFrame, Stop},
+    episode::{EpisodeError, EpisodeFrame, Stop, run_episode},
     eval::{EvalReport, PushReport, write_ceiling_shares},
     flow::{DisFlow, FlowError, FlowParams},
     generate::{MAX_ATTEMPTS, scene_seed},
@@ -199,8 +199,12 @@ pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchEr
     // The previous frame's ground truth, static segmentation and poses.
     let mut previous: Option<PushStart> = None;
     let mut times = Vec::new();
-    let summary = rig
-        .run(&mut tracker, |f: &EpisodeFrame<'_>| {
+    let summary = run_episode(
+        &mut rig.camera,
+        &mut rig.robot,
+        &mut tracker,
+        &rig.setup,
+        |f: &EpisodeFrame<'_>| {
             let (s, r) = score_frame(f).map_err(|e| format!("scoring frame {}: {e}", f.t))?;
             static_metrics.push(s);
             riseg_metrics.push(r);
@@ -218,8 +222,9 @@ pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchEr
             previous = Some(start);
             times.push(f.observation.times);
             Ok(())
-        })
-        .map_err(|source| BenchError::Episode { scene, source })?;
+        },
+    )
+    .map_err(|source| BenchError::Episode { scene, source })?;
     Ok(SceneResult {
         scene,
         sim_seed,

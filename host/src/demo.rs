@@ -27,7 +27,7 @@ use riseg_core::{Config, Intrinsics, action::Push};
 use crate::{
     bench::{BenchConfig, SceneResult, run_bench, score_frame},
     draw::{Clip, arrow, dot, label_colour, line, overlay_labels},
-    episode::{Decision, EpisodeFrame, Stop},
+    episode::{Decision, EpisodeFrame, Stop, run_episode},
     eval::PushReport,
     flow::{DisFlow, FlowParams, viz::flow_to_rgb},
     imageio::{RgbImage, write_atomic, write_rgb8},
@@ -111,12 +111,18 @@ pub fn run_demo(
         Config::PAPER,
     )?;
     let mut frames = Vec::new();
-    let summary = rig.run(&mut tracker, |f: &EpisodeFrame<'_>| {
-        let done = demo_frame(out, f).map_err(|e| format!("{e:#}"))?;
-        frames.push(done);
-        on_frame(f.t);
-        Ok(())
-    })?;
+    let summary = run_episode(
+        &mut rig.camera,
+        &mut rig.robot,
+        &mut tracker,
+        &rig.setup,
+        |f: &EpisodeFrame<'_>| {
+            let done = demo_frame(out, f).map_err(|e| format!("{e:#}"))?;
+            frames.push(done);
+            on_frame(f.t);
+            Ok(())
+        },
+    )?;
     let report = DemoReport {
         seed,
         layout,

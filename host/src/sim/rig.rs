@@ -11,11 +11,7 @@ use std::rc::Rc;
 use super::{MAX_PUSH_LEN_M, SimScene, TABLE_HALF_EXTENTS_M};
 use crate::{
     camera::{Camera, CameraError, CameraFrame},
-    episode::{EpisodeError, EpisodeFrame, EpisodeSummary, run_episode},
-    flow::FlowEstimator,
     robot::{PushCommand, PushGeometry, PushLimits, Robot, RobotError, RobotSetup},
-    segment::StaticSegmenter,
-    tracker::Tracker,
 };
 
 /// Longest push the simulated arm accepts, metres (approach included).
@@ -83,7 +79,8 @@ impl Robot for SimRobot {
     }
 }
 
-/// The simulated devices and their calibration.
+/// The simulated devices and their calibration; the loop
+/// ([`crate::episode::run_episode`]) uses them as it would a real camera and arm.
 #[derive(Debug)]
 pub struct SimRig {
     /// The camera.
@@ -96,24 +93,6 @@ pub struct SimRig {
 }
 
 impl SimRig {
-    /// Runs one episode of Algorithm 1 on these devices ([`run_episode`]).
-    ///
-    /// # Errors
-    /// As [`run_episode`].
-    pub fn run<S: StaticSegmenter, F: FlowEstimator>(
-        &mut self,
-        tracker: &mut Tracker<S, F>,
-        on_frame: impl FnMut(&EpisodeFrame<'_>) -> Result<(), String>,
-    ) -> Result<EpisodeSummary, EpisodeError> {
-        run_episode(
-            &mut self.camera,
-            &mut self.robot,
-            tracker,
-            &self.setup,
-            on_frame,
-        )
-    }
-
     /// Devices over `scene`. The workspace box is the table top (x, y) from the tool's
     /// radius up to [`SIM_MAX_TOOL_HEIGHT_M`]; pushes up to [`SIM_MAX_PUSH_LEN_M`].
     #[must_use]

@@ -15,6 +15,7 @@ use nalgebra::Point3;
 use riseg_core::{
     Config, ImageView,
     action::{ActionReport, Push, find_action},
+    owned::ActionBuf,
     pipeline::RisegLoop,
 };
 
@@ -24,7 +25,6 @@ use crate::{
     robot::{PushCommand, PushRefused, Robot, RobotError, RobotSetup, plan_push},
     segment::StaticSegmenter,
     tracker::{Observation, TrackError, Tracker},
-    workspace::ActionBuf,
 };
 
 /// Why an episode failed (a refused push is not a failure: see [`Stop::Refused`]).

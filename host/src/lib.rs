@@ -33,4 +33,3 @@ pub mod segment;
 pub mod sim;
 pub mod synthetic;
 pub mod tracker;
-pub mod workspace;

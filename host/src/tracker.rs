@@ -28,6 +28,7 @@ use riseg_core::{
     Config, ImageView,
     frames::{BodyFrame, MotionInput},
     group::NO_GROUP,
+    owned::WorkspaceBuf,
     pipeline::{Stage, StepReport, update_mask_observed},
 };
 
@@ -35,7 +36,6 @@ use crate::{
     camera::CameraFrame,
     flow::{Flow, FlowError, FlowEstimator, RgbView},
     segment::{SegmentError, Segmentation, StaticSegmenter},
-    workspace::WorkspaceBuf,
 };
 
 /// Why a tracker step failed.

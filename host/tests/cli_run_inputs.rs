@@ -25,9 +25,10 @@ use riseg::{
     segment::{ClassicalSegmenter, HEAT_CERTAIN, SegmenterParams},
     synthetic::SyntheticStep,
     tracker::{GivenInputs, TrackError, Tracker},
-    workspace::WorkspaceBuf,
 };
-use riseg_core::{Config, ImageView, frames::MotionInput, pipeline::update_mask};
+use riseg_core::{
+    Config, ImageView, frames::MotionInput, owned::WorkspaceBuf, pipeline::update_mask,
+};
 
 const SCENE: &str = "scene_000";
 

@@ -137,7 +137,7 @@ proptest! {
         let mut buf = ActionBuf::new(&cfg, w, h);
         let heat = ImageView::packed(w, h, &s.heatmap).unwrap();
         let depth = ImageView::packed(w, h, &s.depth_t).unwrap();
-        if let Ok(report) = find_action(&heat, &depth, &k, &cfg, buf.view())
+        if let Ok(report) = find_action(&heat, &depth, &ImageView::packed(w, h, &s.static_t1).unwrap(), &k, &cfg, buf.view())
             && let Some(push) = report.push()
         {
             prop_assert!(push.direction_cam.iter().all(|c| c.is_finite()));

@@ -21,7 +21,6 @@
 use core::fmt::Write as _;
 use std::path::Path;
 
-use nalgebra::Point3;
 use riseg_core::{Config, Intrinsics, action::Push};
 
 use crate::{
@@ -176,19 +175,8 @@ pub fn panels(f: &EpisodeFrame<'_>) -> RgbImage {
     for c in f.action.certain() {
         dot(&mut riseg_panel, clip, c.centre_px, WHITE, 2);
     }
-    if let Decision::Push {
-        push,
-        edge_cam_m,
-        command,
-    } = f.decision
-    {
-        draw_push(
-            &mut riseg_panel,
-            &f.frame.intrinsics,
-            &push,
-            &edge_cam_m,
-            &command,
-        );
+    if let Decision::Push { push, command } = f.decision {
+        draw_push(&mut riseg_panel, &f.frame.intrinsics, &push, &command);
     }
     let dim = f.frame.rgb.map(|c| c.map(|v| v / 3));
     let mut frames_panel = dim.clone();
@@ -227,20 +215,14 @@ pub fn panels(f: &EpisodeFrame<'_>) -> RgbImage {
     })
 }
 
-/// Draws the tool's path, projected through the camera: from the object's edge backed
-/// off by the approach (the command's length beyond FindAction's), along the push
-/// direction, to the end of the push; a dot at FindAction's start if it does not project.
-fn draw_push(
-    img: &mut RgbImage,
-    intrinsics: &Intrinsics,
-    push: &Push,
-    edge_cam_m: &Point3<f32>,
-    command: &PushCommand,
-) {
+/// Draws the tool's path, projected through the camera: from the object's edge (the push's
+/// start) backed off by the approach (the command's length beyond FindAction's), along the
+/// push direction, to the end of the push; a dot at the start if it does not project.
+fn draw_push(img: &mut RgbImage, intrinsics: &Intrinsics, push: &Push, command: &PushCommand) {
     let clip = Clip::all(img);
     let approach_m = command.length_m - push.length_m;
-    let from = edge_cam_m - push.direction_cam * approach_m;
-    let to = edge_cam_m + push.direction_cam * push.length_m;
+    let from = push.start_cam_m - push.direction_cam * approach_m;
+    let to = push.start_cam_m + push.direction_cam * push.length_m;
     match (intrinsics.project(&from), intrinsics.project(&to)) {
         (Some(a), Some(b)) => arrow(img, clip, [a.x, a.y], [b.x, b.y], YELLOW, 3),
         _ => dot(img, clip, push.start_px, YELLOW, 3),

@@ -2,7 +2,7 @@
 //!
 //! Scene `i` of a dataset with seed `S` and scene family `L` ([`Layout`]) is simulated from
 //! [`scene_seed`]`(S, i)` with [`SimConfig::D415`] drawing `L`: the initial frame, then
-//! `pushes` scripted pushes ([`SimScene::plan_push`], [`DEFAULT_PUSH_LEN_M`]: in a loose
+//! `pushes` scripted pushes ([`SimScene::scripted_push`], [`DEFAULT_PUSH_LEN_M`]: in a loose
 //! scene one object of a touching pair across the line joining the pair; in a packed or
 //! mixed scene a push that shears the pack), each followed by a frame. Every frame gets
 //! labels and every object's pose (`poses.json`); every push gets the exact flow and an
@@ -28,8 +28,8 @@ use crate::{
     preview::preview,
     scene::{PushAction, Scene, SceneCamera, SceneError},
     sim::{
-        DEFAULT_PUSH_LEN_M, Layout, ObjectBounds, Push, RgbdFrame, SimConfig, SimError, SimScene,
-        TABLE_HALF_EXTENTS_M, ground_truth_flow,
+        DEFAULT_PUSH_LEN_M, Layout, ObjectBounds, RgbdFrame, ScriptedPush, SimConfig, SimError,
+        SimScene, TABLE_HALF_EXTENTS_M, ground_truth_flow,
     },
 };
 
@@ -86,7 +86,7 @@ pub struct GeneratedScene {
     /// Its preview picture.
     pub preview: RgbImage,
     /// The pushes in the world (table) frame.
-    pub pushes: Vec<Push>,
+    pub pushes: Vec<ScriptedPush>,
     /// Number of objects.
     pub objects: usize,
     /// Attempts needed (1 = the first simulation was usable).
@@ -185,10 +185,10 @@ fn simulate(
     let mut flows = Vec::with_capacity(pushes);
     let mut done = Vec::with_capacity(pushes);
     for k in 1..=pushes {
-        let Some(push) = sim.plan_push(DEFAULT_PUSH_LEN_M) else {
+        let Some(push) = sim.scripted_push(DEFAULT_PUSH_LEN_M) else {
             return Ok(Err(format!("no touching pair to push before push {k}")));
         };
-        sim.push(push.start_world, push.direction_world, push.length_m)?;
+        sim.push(&push.command)?;
         if !on_table(&sim.object_bounds()) {
             return Ok(Err(format!("an object left the table in push {k}")));
         }
@@ -223,8 +223,8 @@ fn simulate(
     let camera_from_world = sim.world_from_camera().inverse();
     let mut actions = Vec::with_capacity(done.len());
     for (p, number) in done.iter().zip(1u32..) {
-        let start = camera_from_world * p.start_world;
-        let dir = camera_from_world.rotation * p.direction_world;
+        let start = camera_from_world * p.command.start_robot_m;
+        let dir = camera_from_world.rotation * p.command.direction_robot;
         let Some(px) = k.project(&start) else {
             return Ok(Err(format!("push {number} starts behind the camera")));
         };
@@ -233,7 +233,7 @@ fn simulate(
             start_px: [px.x, px.y],
             start_cam_m: [start.x, start.y, start.z],
             direction_cam: [dir.x, dir.y, dir.z],
-            length_m: p.length_m,
+            length_m: p.command.length_m,
         });
     }
     let poses = frames.iter().map(|f| f.object_poses.clone()).collect();

@@ -141,6 +141,7 @@ fn run_scene(seed: u64) -> SceneResult {
     let report = find_action(
         &ImageView::packed(w, h, heat).expect("heatmap view"),
         &ImageView::packed(w, h, depth_m).expect("depth view"),
+        &ImageView::packed(w, h, pred).expect("mask view"),
         &frame.intrinsics,
         &cfg,
         scratch.view(),

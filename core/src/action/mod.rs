@@ -3,9 +3,12 @@
 //!
 //! # Contract
 //!
-//! [`find_action`] reads a 0-255 heatmap (high = surely inside an object) and a depth
-//! image of the same size, and returns an [`ActionReport`]: the cluster centres it found
-//! (for display), the chosen pair of certain clusters, and the push, if any. It writes only
+//! [`find_action`] reads a 0-255 heatmap (high = surely inside an object), a depth image
+//! and the current mask (the accumulated labels; at the first frame the static
+//! segmentation) of the same size, and returns an [`ActionReport`]: the cluster centres it
+//! found (for display), the chosen pair of certain clusters, and the push, if any. The
+//! push is the one the robot makes: where it starts, which way, how far (camera frame);
+//! the host only maps it into the robot frame and checks the arm's limits. It writes only
 //! the caller's [`ActionScratch`], allocates nothing, never panics, and gives bit-identical
 //! reports for the same inputs and [`Config::seed`].
 //!
@@ -108,10 +111,15 @@
 //!    walk reaches the image border, or, after having been in `C_i`'s region, a pixel of
 //!    another cluster's region (that side leads into another object); then the other side
 //!    is tried.
-//! 10. **Push.** `P` is back-projected at the depth of the cluster's 3-D centre, so the
-//!     tool starts at the object's height and not on the table; the direction is the unit
-//!     vector from there to the cluster's 3-D centre; the length is
-//!     [`Config::push_len_m`].
+//! 10. **Push.** The push starts where the pushed segment of the mask ends on the line
+//!     from `C_i`'s pixel centre to `P`: walking from the centre towards `P` in 0.5 px
+//!     steps while the pixel keeps the centre's label, the last point inside is the start
+//!     `S` (`P` itself when the centre is background in the mask). The heatmap's rim `P`
+//!     can lie a few pixels beyond or inside the segment's outline; the mask says where
+//!     the object really ends. `S` is back-projected at the depth of the cluster's 3-D
+//!     centre, so the tool starts at the object's height and not on the table; the
+//!     direction is the unit vector from `P` so back-projected to the cluster's 3-D centre
+//!     (the same line); the length is [`Config::push_len_m`].
 //!
 //! Cost: two vectorised passes over the pixels (class counts, and the per-row maximum
 //! that skips rows without a certain pixel), a scan of the rows that hold certain pixels
@@ -265,11 +273,13 @@ pub struct Pair {
     pub uncertain_dist_m: Real,
 }
 
-/// A push: start just outside the pushed object, move towards the pushed cluster's centre.
+/// A push: start at the pushed object's edge, move towards the pushed cluster's centre
+/// (module docs, steps 9-10). This is what the robot makes; the host maps it into the
+/// robot frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Push {
-    /// Start pixel `[x, y]` (sub-pixel): the first pixel of the walk out of the pushed
-    /// cluster that is no longer object (heat below [`Config::uncertain_from`]).
+    /// Start pixel `[x, y]` (sub-pixel): where the pushed segment of the mask ends on the
+    /// way from the cluster's centre out of the object (module docs, step 10).
     pub start_px: [Real; 2],
     /// Pixel centre of the pushed cluster `[x, y]` (the push aims here).
     pub target_px: [Real; 2],
@@ -322,11 +332,12 @@ impl ActionReport {
 /// Finds the push of paper Algorithm 2 (see the [module docs](self) for every rule).
 ///
 /// `heatmap` is 0-255 (high = object); `depth` is metres, with `0`, negative, NaN and
-/// infinity meaning "no reading". Pixels are numbered from the centre of the top-left
-/// pixel, as in [`Intrinsics`].
+/// infinity meaning "no reading"; `mask` is the current instance mask (0 = background),
+/// which places the push's start on the pushed segment's edge. Pixels are numbered from
+/// the centre of the top-left pixel, as in [`Intrinsics`].
 ///
 /// # Errors
-/// [`Error::SizeMismatch`] if `heatmap` and `depth` differ in size;
+/// [`Error::SizeMismatch`] if `heatmap`, `depth` and `mask` differ in size;
 /// [`Error::BadConfig`] if [`Config::check`] fails; [`Error::NonFinite`] or
 /// [`Error::BadConfig`] if [`Intrinsics::check`] fails;
 /// [`Error::BufferTooSmall`] if a scratch slice is shorter than
@@ -340,6 +351,7 @@ impl ActionReport {
 /// let (w, h) = (32, 24);
 /// let heat = vec![0u8; w * h]; // nothing is an object
 /// let depth = vec![0.6f32; w * h];
+/// let mask = vec![0u16; w * h];
 /// let cfg = Config::PAPER;
 /// let len = ActionScratchLen::for_config(&cfg, w, h);
 /// let (mut c, mut u) = (vec![0.0; len.certain], vec![0.0; len.uncertain]);
@@ -359,6 +371,7 @@ impl ActionReport {
 /// let report = find_action(
 ///     &ImageView::packed(w, h, &heat)?,
 ///     &ImageView::packed(w, h, &depth)?,
+///     &ImageView::packed(w, h, &mask)?,
 ///     &k,
 ///     &cfg,
 ///     scratch,
@@ -369,11 +382,12 @@ impl ActionReport {
 pub fn find_action(
     heatmap: &ImageView<'_, u8>,
     depth: &ImageView<'_, Real>,
+    mask: &ImageView<'_, u16>,
     intrinsics: &Intrinsics,
     cfg: &Config,
     scratch: ActionScratch<'_>,
 ) -> Result<ActionReport, Error> {
-    if heatmap.size() != depth.size() {
+    if heatmap.size() != depth.size() || heatmap.size() != mask.size() {
         return Err(Error::SizeMismatch);
     }
     cfg.check()?;
@@ -466,7 +480,7 @@ pub fn find_action(
     let mut pair = pairs.first().copied();
     let mut push = None;
     for p in &pairs {
-        if let Some((p, found)) = plan_push(&map, p, intrinsics, cfg, &mut rng) {
+        if let Some((p, found)) = push_for_pair(&map, mask, p, intrinsics, cfg, &mut rng) {
             pair = Some(p);
             push = Some(found);
             break;

@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::{
-    Config, Intrinsics,
+    Config, ImageView, Intrinsics,
     math::{Real, round, sqrt},
     rng::Pcg32,
 };
@@ -46,10 +46,43 @@ fn walk_out(
     None
 }
 
+/// Where the pushed segment of `mask` ends on the way from `target` (the pushed cluster's
+/// pixel centre) to `rim` (where the walk left the object; module docs, step 10): walks
+/// from `target` towards `rim` in [`WALK_STEP_PX`] steps while the pixel keeps `target`'s
+/// label, and returns the last point inside. `rim` when `target` is background in `mask`
+/// or off the image, or `rim` is (nearly) `target`.
+fn segment_edge(mask: &ImageView<'_, u16>, target: [Real; 2], rim: [Real; 2]) -> [Real; 2] {
+    let label_at = |p: [Real; 2]| mask.at(round(p[0]) as i64, round(p[1]) as i64);
+    let Some(label) = label_at(target).filter(|&l| l != 0) else {
+        return rim;
+    };
+    let (dx, dy) = (rim[0] - target[0], rim[1] - target[1]);
+    let len = sqrt(dx * dx + dy * dy);
+    if !(len > 1e-3 && len.is_finite()) {
+        return rim;
+    }
+    let (width, height) = mask.size();
+    let step = [WALK_STEP_PX * dx / len, WALK_STEP_PX * dy / len];
+    let mut inside = target;
+    // 0.5 px steps over width + height pixels cover the image diagonal.
+    for i in 1..=width.saturating_add(height).saturating_mul(2) {
+        let p = [
+            target[0] + step[0] * i as Real,
+            target[1] + step[1] * i as Real,
+        ];
+        if label_at(p) != Some(label) {
+            break;
+        }
+        inside = p;
+    }
+    inside
+}
+
 /// The push for `pair` (module docs, steps 8-10), with the pair as pushed: the pair's
 /// pushed cluster first, then the other one.
-pub(super) fn plan_push(
+pub(super) fn push_for_pair(
     map: &RegionMap<'_>,
+    mask: &ImageView<'_, u16>,
     pair: &Pair,
     intrinsics: &Intrinsics,
     cfg: &Config,
@@ -67,13 +100,13 @@ pub(super) fn plan_push(
             continue;
         }
         let perp = [-dy / len * side, dx / len * side];
-        let Some(start_px) = walk_out(map, pushed, ci.centre_px, perp)
+        let Some(rim_px) = walk_out(map, pushed, ci.centre_px, perp)
             .or_else(|| walk_out(map, pushed, ci.centre_px, [-perp[0], -perp[1]]))
         else {
             continue;
         };
-        let start_cam_m = intrinsics.back_project(start_px[0], start_px[1], ci.centre_cam_m.z);
-        let towards = ci.centre_cam_m - start_cam_m;
+        let z_m = ci.centre_cam_m.z;
+        let towards = ci.centre_cam_m - intrinsics.back_project(rim_px[0], rim_px[1], z_m);
         let norm = towards.norm();
         if !(norm > 0.0 && norm.is_finite()) {
             continue;
@@ -82,10 +115,11 @@ pub(super) fn plan_push(
         if !direction_cam.iter().all(|v| v.is_finite()) {
             continue;
         }
+        let start_px = segment_edge(mask, ci.centre_px, rim_px);
         let push = Push {
             start_px,
             target_px: ci.centre_px,
-            start_cam_m,
+            start_cam_m: intrinsics.back_project(start_px[0], start_px[1], z_m),
             direction_cam,
             length_m: cfg.push_len_m,
         };

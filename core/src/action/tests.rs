@@ -61,6 +61,7 @@ impl Scene {
     }
 }
 
+/// FindAction with an all-background mask: the push starts at the heatmap's rim.
 fn run(
     w: usize,
     h: usize,
@@ -69,9 +70,22 @@ fn run(
     k: &Intrinsics,
     cfg: &Config,
 ) -> Result<ActionReport, Error> {
+    run_masked(w, h, heat, depth, &vec![0; w * h], k, cfg)
+}
+
+fn run_masked(
+    w: usize,
+    h: usize,
+    heat: &[u8],
+    depth: &[Real],
+    mask: &[u16],
+    k: &Intrinsics,
+    cfg: &Config,
+) -> Result<ActionReport, Error> {
     find_action(
         &ImageView::packed(w, h, heat)?,
         &ImageView::packed(w, h, depth)?,
+        &ImageView::packed(w, h, mask)?,
         k,
         cfg,
         ActionBuf::new(cfg, w, h).view(),
@@ -665,6 +679,8 @@ fn bad_inputs_are_errors_not_panics() {
     let mut runs = vec![0u32; len.runs];
     let mut row_runs = vec![0u32; len.row_runs];
     let hv = ImageView::packed(W, H, &heat).unwrap();
+    let mask = vec![0u16; W * H];
+    let mv = ImageView::packed(W, H, &mask).unwrap();
     let short_depth = ImageView::packed(W, H - 1, &depth).unwrap();
     let scratch = ActionScratch {
         certain: &mut c,
@@ -676,7 +692,7 @@ fn bad_inputs_are_errors_not_panics() {
         row_runs: &mut row_runs,
     };
     assert_eq!(
-        find_action(&hv, &short_depth, &k, &cfg, scratch).err(),
+        find_action(&hv, &short_depth, &mv, &k, &cfg, scratch).err(),
         Some(Error::SizeMismatch)
     );
 
@@ -692,7 +708,7 @@ fn bad_inputs_are_errors_not_panics() {
         row_runs: &mut row_runs,
     };
     assert_eq!(
-        find_action(&hv, &dv, &k, &cfg, scratch).err(),
+        find_action(&hv, &dv, &mv, &k, &cfg, scratch).err(),
         Some(Error::BufferTooSmall {
             buffer: Buffer::SampleNearest,
             needed: len.nearest,
@@ -711,7 +727,7 @@ fn bad_inputs_are_errors_not_panics() {
         row_runs: &mut row_runs,
     };
     assert_eq!(
-        find_action(&hv, &dv, &k, &cfg, scratch).err(),
+        find_action(&hv, &dv, &mv, &k, &cfg, scratch).err(),
         Some(Error::BufferTooSmall {
             buffer: Buffer::Samples,
             needed: 3 * len.samples,
@@ -830,6 +846,7 @@ fn a_short_scratch_slice_is_named_in_the_error() {
         let got = find_action(
             &ImageView::packed(W, H, &s.heat).unwrap(),
             &ImageView::packed(W, H, &s.depth).unwrap(),
+            &ImageView::packed(W, H, &vec![0; W * H]).unwrap(),
             &intrinsics(),
             &cfg,
             v,
@@ -844,4 +861,55 @@ fn a_short_scratch_slice_is_named_in_the_error() {
             "slot {slot}"
         );
     }
+}
+
+#[test]
+fn the_push_starts_where_the_pushed_segment_of_the_mask_ends() {
+    let s = three_blobs();
+    let k = intrinsics();
+    // Each object's segment reaches 4 px beyond its certain disc.
+    let mut mask = vec![0u16; W * H];
+    for (label, (cx, cy)) in [(1u16, A), (2, B), (3, C)] {
+        for y in 0..H {
+            for x in 0..W {
+                let (dx, dy) = (x as Real - cx, y as Real - cy);
+                if dx * dx + dy * dy <= (R_PX + 4.0) * (R_PX + 4.0) {
+                    mask[y * W + x] = label;
+                }
+            }
+        }
+    }
+    for seed in 0..6 {
+        let mut cfg = Config::PAPER;
+        cfg.seed = seed;
+        let rim = s.run(&cfg).unwrap().push().expect("push");
+        let report = run_masked(W, H, &s.heat, &s.depth, &mask, &k, &cfg).unwrap();
+        let push = report.push().expect("push");
+        // Same pair, same line, same direction: only the start moved, outwards.
+        assert_eq!(push.target_px, rim.target_px, "seed {seed}");
+        assert_eq!(push.direction_cam, rim.direction_cam, "seed {seed}");
+        let from = |p: [Real; 2]| [p[0] - push.target_px[0], p[1] - push.target_px[1]];
+        let (e, r) = (from(push.start_px), from(rim.start_px));
+        let (len_e, len_r) = (
+            sqrt(e[0] * e[0] + e[1] * e[1]),
+            sqrt(r[0] * r[0] + r[1] * r[1]),
+        );
+        assert!(
+            (e[0] * r[1] - e[1] * r[0]).abs() < 1e-3 * len_e * len_r,
+            "seed {seed}"
+        );
+        assert!(
+            (len_e - (R_PX + 4.0)).abs() <= 1.0,
+            "seed {seed}: start {len_e} px from the centre, rim {len_r}"
+        );
+        // The 3-D start is the start pixel at the pushed cluster's depth.
+        let back = k.back_project(push.start_px[0], push.start_px[1], push.start_cam_m.z);
+        assert_eq!(back, push.start_cam_m);
+        assert_eq!(push.start_cam_m.z, rim.start_cam_m.z);
+    }
+    // A mask of another size is refused.
+    assert_eq!(
+        run_masked(W, H, &s.heat, &s.depth, &mask[1..], &k, &Config::PAPER).err(),
+        Some(Error::BadImageLayout)
+    );
 }

@@ -72,7 +72,7 @@ impl Robot for SimRobot {
             .map_err(|e| RobotError(format!("refused: {e}")))?;
         self.scene
             .borrow_mut()
-            .push(cmd.start_robot_m, cmd.direction_robot, cmd.length_m)
+            .push(cmd)
             .map_err(|e| RobotError(e.to_string()))?;
         self.pushes.push(*cmd);
         Ok(())

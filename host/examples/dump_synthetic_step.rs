@@ -15,7 +15,7 @@
 use std::{fs, path::Path};
 
 use anyhow::{Context, Result, bail};
-use riseg::synthetic::SyntheticStep;
+use riseg::testkit::SyntheticStep;
 use riseg_core::owned::WorkspaceBuf;
 use riseg_core::{Config, pipeline::update_mask};
 

@@ -3,33 +3,26 @@
 //! ## This crate
 //!
 //! `riseg` is the host side of RISeg. It owns everything `riseg-core` leaves to the caller:
-//! buffers (`Vec`-backed workspaces), file I/O, devices, the simulator and the CLI.
+//! devices, file I/O, the simulator, the built-in segmenter and optical flow, scoring and
+//! the CLI. Modules by role, each importing only the ones below it:
 //!
-//! - [`imageio`]: owned images, PNG and Middlebury `.flo` files, atomic writes.
-//! - [`scene`]: the scene folder format (read and written).
+//! - [`cli`]: the `riseg` subcommands (`demo`, `bench`, `gen`, `run`, `eval`, ...).
 //! - [`sim`]: the simulated tabletop (rapier3d physics, parry3d ray-cast RGB-D, exact
-//!   ground truth).
-//! - [`generate`]: simulated datasets in the scene folder format (`riseg gen`).
-//! - [`preview`]: a picture of a scene for people.
-//! - [`ceiling`]: the motion ceiling, the best mask motion could reveal, that RISeg is
-//!   judged against.
+//!   ground truth): one camera and one robot for the loop.
+//! - [`rig`]: the loop of Algorithm 1 and its seams: camera, tracker, episode, robot.
+//! - [`segment`]: the built-in static segmenter (labels + FindAction's heatmap).
+//! - [`flow`]: the built-in dense optical flow (DIS).
+//! - [`io`]: owned images, PNG and `.flo` files, atomic writes, the scene folder format.
+//! - [`draw`]: colours and drawing for pictures.
+//! - [`eval`]: UOIS metrics and the motion ceiling.
+//! - [`testkit`]: synthetic inputs for tests, benches and examples.
 
-pub mod bench;
-pub mod camera;
-pub mod ceiling;
-pub mod demo;
+pub mod cli;
 pub mod draw;
-pub mod episode;
 pub mod eval;
 pub mod flow;
-pub mod generate;
-pub mod imageio;
-pub mod metrics;
-pub mod preview;
-pub mod replay;
-pub mod robot;
-pub mod scene;
+pub mod io;
+pub mod rig;
 pub mod segment;
 pub mod sim;
-pub mod synthetic;
-pub mod tracker;
+pub mod testkit;

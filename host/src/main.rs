@@ -6,22 +6,22 @@ use std::process::ExitCode;
 use anyhow::{Context as _, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use riseg::bench::{self, BenchConfig};
-use riseg::ceiling::CeilingParams;
-use riseg::episode::Stop;
-use riseg::eval::{self, DatasetPoses};
+use riseg::cli::bench::{self, BenchConfig};
+use riseg::cli::eval::{self, DatasetPoses};
+use riseg::cli::generate::{PREVIEW_DIR, scene_dir_name, write_dataset};
+use riseg::cli::run::{InputDirs, run_scene};
+use riseg::eval::ceiling::CeilingParams;
 use riseg::flow::{
     DisFlow, FlowEstimator as _, FlowParams, RgbView,
     flo::{write_atomic, write_flo},
     viz::flow_to_rgb,
 };
-use riseg::generate::{PREVIEW_DIR, scene_dir_name, write_dataset};
-use riseg::imageio::{self, Image, ImageIoError};
-use riseg::replay::{InputDirs, run_scene};
-use riseg::scene::{self, SceneCamera};
+use riseg::io::image::{Image, ImageIoError};
+use riseg::io::scene::{self, SceneCamera};
+use riseg::rig::episode::Stop;
+use riseg::rig::tracker::Tracker;
 use riseg::segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams, viz};
 use riseg::sim::Layout;
-use riseg::tracker::Tracker;
 
 /// RISeg: robot interactive object segmentation via body frame-invariant features.
 ///
@@ -627,8 +627,8 @@ fn run_demo(args: &DemoArgs) -> anyhow::Result<()> {
     let layout = args.layout.layout();
     let seed = args
         .seed
-        .unwrap_or_else(|| riseg::demo::default_seed(layout));
-    let report = riseg::demo::run_demo(&args.out, seed, layout, |t| {
+        .unwrap_or_else(|| riseg::cli::demo::default_seed(layout));
+    let report = riseg::cli::demo::run_demo(&args.out, seed, layout, |t| {
         bar.set_message(format!(
             "frame {t} done; pushing, rendering frame {}",
             t + 1
@@ -640,9 +640,9 @@ fn run_demo(args: &DemoArgs) -> anyhow::Result<()> {
         "riseg demo: simulated {layout} scene {}, {} pushes; {}.",
         report.seed,
         report.frames.len().saturating_sub(1),
-        riseg::demo::stop_text(&report.stop)
+        riseg::cli::demo::stop_text(&report.stop)
     );
-    print!("{}", riseg::demo::table(&report));
+    print!("{}", riseg::cli::demo::table(&report));
     println!(
         "pictures and report: {}",
         args.out.join("report.md").display()
@@ -654,7 +654,7 @@ fn run_recorded(args: &RunArgs) -> anyhow::Result<()> {
     let scenes = match (&args.scene, &args.dataset) {
         (Some(scene), _) => vec![scene.clone()],
         (None, Some(dataset)) => {
-            let scenes = riseg::scene::list_scenes(dataset)?;
+            let scenes = riseg::io::scene::list_scenes(dataset)?;
             if scenes.is_empty() {
                 bail!("{}: no scene_* folders", dataset.display());
             }
@@ -843,9 +843,9 @@ fn segment(args: &SegmentArgs) -> anyhow::Result<()> {
     let (camera_path, rgb_path, depth_path) = segment_inputs(args)?;
     let camera = SceneCamera::read(&camera_path)?;
     let (width, height) = (camera.width, camera.height);
-    let rgb = imageio::read_rgb8(&rgb_path)?;
+    let rgb = riseg::io::image::read_rgb8(&rgb_path)?;
     ImageIoError::expect_size(&rgb_path, &rgb, width, height)?;
-    let depth = imageio::read_gray16(&depth_path)?;
+    let depth = riseg::io::image::read_gray16(&depth_path)?;
     ImageIoError::expect_size(&depth_path, &depth, width, height)?;
 
     let depth_m: Vec<f32> = depth
@@ -864,16 +864,16 @@ fn segment(args: &SegmentArgs) -> anyhow::Result<()> {
         .with_context(|| format!("segmenting {}", rgb_path.display()))?;
     let seg = &out.segmentation;
 
-    imageio::write_gray16(
+    riseg::io::image::write_gray16(
         &args.output,
         &Image::from_vec(width, height, seg.labels.clone())?,
     )?;
     if let Some(path) = &args.heatmap {
-        imageio::write_gray8(path, &Image::from_vec(width, height, seg.heatmap.clone())?)?;
+        riseg::io::image::write_gray8(path, &Image::from_vec(width, height, seg.heatmap.clone())?)?;
     }
     if let Some(path) = &args.viz {
         let picture = viz::side_by_side(rgb.as_slice(), seg);
-        imageio::write_rgb8(path, &Image::from_vec(3 * width, height, picture)?)?;
+        riseg::io::image::write_rgb8(path, &Image::from_vec(3 * width, height, picture)?)?;
     }
     let n = out.plane.normal;
     println!(

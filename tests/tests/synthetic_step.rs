@@ -2,7 +2,7 @@
 //! touching boxes, merged into one segment, three of them moved) through riseg-core with
 //! the host's Vec-backed workspace.
 
-use riseg::synthetic::SyntheticStep;
+use riseg::testkit::SyntheticStep;
 use riseg_core::owned::WorkspaceBuf;
 use riseg_core::{Config, pipeline::update_mask};
 

@@ -16,7 +16,7 @@
 //!
 //! 1. **Classes.** A pixel is *certain* when `heatmap >= certain_from` (paper `l_u`),
 //!    *uncertain* when `uncertain_from <= heatmap < certain_from` (paper `l_l`), and
-//!    *table* below. Only pixels with a depth reading ([`valid_depth`]) are sampled.
+//!    *table* below. Only pixels with a depth reading ([`valid_depth`](crate::image::valid_depth)) are sampled.
 //! 2. **Samples.** Up to [`Config::kmeans_samples`] pixels of each class are drawn by
 //!    systematic sampling over the class's pixels in row-major order, with a seeded random
 //!    offset: every class pixel has the same chance and no sort is needed. One vectorised

@@ -25,7 +25,7 @@
 //! ```
 //! use riseg::flow::{DisFlow, FlowParams, GrayF32, testdata};
 //!
-//! let pair = testdata::translated(160, 120, 7, [1.5, -0.75]);
+//! let pair = crate::testkit::flow::translated(160, 120, 7, [1.5, -0.75]);
 //! let (a, b) = (pair.first_gray(), pair.second_gray());
 //! let flow = DisFlow::new(FlowParams::MEDIUM)?.estimate_gray(&a, &b)?;
 //! let epe = flow.mean_epe(&pair.flow, Some(&pair.interior))?;
@@ -430,7 +430,7 @@ impl FlowEstimator for DisFlow {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::flow::testdata::{self, Scene};
+    use crate::testkit::flow::Scene;
 
     fn medium() -> DisFlow {
         DisFlow::new(FlowParams::MEDIUM).unwrap()
@@ -439,7 +439,7 @@ mod tests {
     #[test]
     fn subpixel_translation_is_recovered_on_the_interior() {
         for (seed, shift) in [(1, [2.3, -1.6]), (2, [-5.7, 3.25]), (3, [0.4, 0.45])] {
-            let p = testdata::translated(640, 480, seed, shift);
+            let p = crate::testkit::flow::translated(640, 480, seed, shift);
             let f = medium().estimate(p.first_view(), p.second_view()).unwrap();
             let epe = f.mean_epe(&p.flow, Some(&p.interior)).unwrap();
             eprintln!("shift {shift:?}: interior EPE {epe:.4} px");
@@ -450,7 +450,7 @@ mod tests {
     #[test]
     fn three_degree_rotation_is_recovered_on_the_interior() {
         for angle in [3f32, -3.0] {
-            let p = testdata::rotated(640, 480, 4, angle.to_radians());
+            let p = crate::testkit::flow::rotated(640, 480, 4, angle.to_radians());
             let f = medium().estimate(p.first_view(), p.second_view()).unwrap();
             let epe = f.mean_epe(&p.flow, Some(&p.interior)).unwrap();
             eprintln!("{angle} degrees: interior EPE {epe:.4} px");
@@ -460,7 +460,7 @@ mod tests {
 
     #[test]
     fn zero_motion_gives_zero_flow() {
-        let p = testdata::translated(320, 240, 5, [0.0, 0.0]);
+        let p = crate::testkit::flow::translated(320, 240, 5, [0.0, 0.0]);
         for params in [
             FlowParams::ULTRAFAST,
             FlowParams::FAST,

@@ -18,13 +18,12 @@
 //!   crosses tasks).
 //!
 //! # Modules
-//! [`dis`] holds the estimator and its presets; [`testdata`] makes image pairs with exact
+//! [`dis`] holds the estimator and its presets; [`crate::testkit::flow`] (test support) makes image pairs with exact
 //! ground truth; [`viz`] draws a flow with the Middlebury colour wheel; [`flo`] is the
 //! `.flo` file format.
 
 pub mod dis;
 pub mod flo;
-pub mod testdata;
 pub mod viz;
 
 mod densify;
@@ -35,7 +34,7 @@ mod variational;
 
 pub use dis::{DisFlow, FlowParams};
 
-use crate::imageio::FlowImage;
+use crate::io::image::FlowImage;
 
 /// Why a flow call failed.
 #[derive(Debug, thiserror::Error)]
@@ -135,9 +134,9 @@ fn check_len(width: usize, height: usize, per_pixel: usize, len: usize) -> Resul
 /// `image::RgbImage::as_raw` and of a decoded 8-bit RGB PNG.
 #[derive(Debug, Clone, Copy)]
 pub struct RgbView<'a> {
-    width: usize,
-    height: usize,
-    data: &'a [u8],
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) data: &'a [u8],
 }
 
 impl<'a> RgbView<'a> {
@@ -233,9 +232,9 @@ impl GrayF32 {
 /// A dense flow field: `[dx, dy]` pixels per pixel of the first image, row-major.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Flow {
-    width: usize,
-    height: usize,
-    data: Vec<[f32; 2]>,
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) data: Vec<[f32; 2]>,
 }
 
 impl Flow {
@@ -252,7 +251,7 @@ impl Flow {
         })
     }
 
-    /// The flow of a Middlebury `.flo` file ([`crate::imageio::read_flo`]) with every
+    /// The flow of a Middlebury `.flo` file ([`crate::io::image::read_flo`]) with every
     /// unknown vector ([`is_known_flow`]) replaced by `[NaN, NaN]`, the in-memory mark.
     #[must_use]
     pub fn from_middlebury(image: FlowImage) -> Self {

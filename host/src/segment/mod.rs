@@ -26,7 +26,6 @@ mod grow;
 mod heat;
 mod params;
 mod plane;
-pub mod synthetic;
 pub mod viz;
 
 use riseg_core::Intrinsics;
@@ -36,7 +35,7 @@ pub use params::SegmenterParams;
 pub use plane::TablePlane;
 
 /// Union-find over `u32` indices (roots are the smallest index), shared with
-/// [`crate::ceiling`].
+/// [`crate::eval::ceiling`].
 pub(crate) use grow::{find as union_find_root, union as union_find_join};
 
 /// Heatmap values at or above this are "certain" object pixels (the paper's `l_u`).

@@ -40,10 +40,10 @@
 //! camera would.
 
 mod convert;
+mod devices;
 mod flow;
 mod layout;
 mod render;
-mod rig;
 mod shear;
 
 use core::fmt;
@@ -57,14 +57,14 @@ use riseg_core::{Intrinsics, Pose, rng::Pcg32};
 
 /// Where one object is: its label (as in [`RgbdFrame::labels`]) and body frame in the world
 /// frame. Defined with the scene folder format, which stores it (`poses.json`).
-pub use crate::scene::ObjectPose;
+pub use crate::io::scene::ObjectPose;
+pub use devices::{SIM_MAX_PUSH_LEN_M, SIM_MAX_TOOL_HEIGHT_M, SimCamera, SimRig, SimRobot};
 pub use flow::{UNKNOWN_FLOW, ground_truth_flow};
 pub use layout::{Layout, ObjectShape};
-pub use rig::{SIM_MAX_PUSH_LEN_M, SIM_MAX_TOOL_HEIGHT_M, SimCamera, SimRig, SimRobot};
 
 use crate::{
-    imageio::{DepthImage, Gray16Image, RgbImage},
-    robot::PushCommand,
+    io::image::{DepthImage, Gray16Image, RgbImage},
+    rig::robot::PushCommand,
 };
 use convert::{
     CM_PER_M, dir_from_sim, dir_to_sim, point_from_sim, point_to_sim, pose_from_sim, pose_to_sim,

@@ -19,7 +19,7 @@
 use parry3d::math::Vector as GlamVec;
 use rapier3d::prelude::Collider;
 
-use crate::robot::PushCommand;
+use crate::rig::robot::PushCommand;
 
 use super::{
     CM_PER_M, ObjectShape, ScriptedPush, SimScene, TOUCH_GAP_M, across, dir_from_sim,

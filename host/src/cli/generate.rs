@@ -15,8 +15,8 @@
 //! [`MAX_ATTEMPTS`]); [`GeneratedScene::attempts`] says how many were needed. All of this is
 //! deterministic, so the same dataset seed and family give the same files, byte for byte.
 //!
-//! Output layout: `OUT/scene_000/ …` (see [`crate::scene`]) and a preview per scene,
-//! `OUT/preview/scene_000.png` ([`crate::preview`]).
+//! Output layout: `OUT/scene_000/ …` (see [`crate::io::scene`]) and a preview per scene,
+//! `OUT/preview/scene_000.png` ([`crate::cli::preview`]).
 
 use std::{
     fs,
@@ -24,9 +24,9 @@ use std::{
 };
 
 use crate::{
-    imageio::{Gray16Image, ImageIoError, RgbImage, write_rgb8},
-    preview::preview,
-    scene::{PushAction, Scene, SceneCamera, SceneError},
+    cli::preview::preview,
+    io::image::{Gray16Image, ImageIoError, RgbImage, write_rgb8},
+    io::scene::{PushAction, Scene, SceneCamera, SceneError},
     sim::{
         DEFAULT_PUSH_LEN_M, Layout, ObjectBounds, RgbdFrame, ScriptedPush, SimConfig, SimError,
         SimScene, TABLE_HALF_EXTENTS_M, ground_truth_flow,

@@ -1,5 +1,5 @@
 //! `riseg eval`: predicted label maps scored against a dataset's ground truth with the
-//! UOIS metrics of [`crate::metrics`], averaged per push index.
+//! UOIS metrics of [`crate::eval::metrics`], averaged per push index.
 //!
 //! # Folder layout
 //!
@@ -25,7 +25,7 @@
 //! # Motion ceiling
 //!
 //! When every scene folder of `DATASET` has a `poses.json` (the objects' true poses,
-//! format in [`crate::scene`]; [`dataset_poses`] says whether they do),
+//! format in [`crate::io::scene`]; [`dataset_poses`] says whether they do),
 //! [`evaluate_ceiling`] scores the motion ceiling of every ground-truth frame the same
 //! way: each scene is read as a scene folder ([`Scene::read`], which checks `poses.json`
 //! too: colour, depth, labels and poses are needed), every frame is segmented by the given
@@ -42,10 +42,10 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    camera::SceneReplay,
-    ceiling::{CeilingError, CeilingFrame, CeilingParams, MotionCeiling},
-    metrics::{self, ImageMetrics, MetricsError, MetricsRow, Prf, PushAverages},
-    scene::{LABEL_DIR, POSES_FILE, Scene, SceneError, frame_file_name, list_scenes},
+    eval::ceiling::{CeilingError, CeilingFrame, CeilingParams, MotionCeiling},
+    eval::metrics::{self, ImageMetrics, MetricsError, MetricsRow, Prf, PushAverages},
+    io::scene::{LABEL_DIR, POSES_FILE, Scene, SceneError, frame_file_name, list_scenes},
+    rig::camera::SceneReplay,
     segment::{SegmentError, StaticSegmenter},
 };
 

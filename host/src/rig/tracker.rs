@@ -33,8 +33,8 @@ use riseg_core::{
 };
 
 use crate::{
-    camera::CameraFrame,
     flow::{Flow, FlowError, FlowEstimator, RgbView},
+    rig::camera::CameraFrame,
     segment::{SegmentError, Segmentation, StaticSegmenter},
 };
 

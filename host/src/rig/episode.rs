@@ -20,11 +20,11 @@ use riseg_core::{
 };
 
 use crate::{
-    camera::{Camera, CameraError, CameraFrame},
     flow::FlowEstimator,
-    robot::{PushCommand, PushRefused, Robot, RobotError, RobotSetup, plan_push},
+    rig::camera::{Camera, CameraError, CameraFrame},
+    rig::robot::{PushCommand, PushRefused, Robot, RobotError, RobotSetup, plan_push},
+    rig::tracker::{Observation, TrackError, Tracker},
     segment::StaticSegmenter,
-    tracker::{Observation, TrackError, Tracker},
 };
 
 /// Why an episode failed (a refused push is not a failure: see [`Stop::Refused`]).

@@ -15,7 +15,7 @@
 //! the image border in the first image, and likewise around the target position in the
 //! second image, on the same layer (so not occluded).
 
-use super::{Flow, GrayF32, RgbView};
+use crate::flow::{Flow, GrayF32, RgbView};
 use rayon::prelude::*;
 use riseg_core::rng::Pcg32;
 

@@ -4,7 +4,7 @@
 //!
 //! [`run_demo`] builds the simulated scene of `seed` in the scene family `layout`
 //! ([`default_seed`] gives each family's default scene), runs one episode of Algorithm 1 with
-//! the built-in segmenter and flow ([`crate::episode::run_episode`]), scores each frame against the
+//! the built-in segmenter and flow ([`crate::rig::episode::run_episode`]), scores each frame against the
 //! simulator's ground truth, and writes into the output folder:
 //! - `frame_N.png` for each frame `N` (the scene after `N` pushes), four panels:
 //!   top left the static segmentation, top right the RISeg mask with FindAction's certain
@@ -24,17 +24,17 @@ use std::path::Path;
 use riseg_core::{Config, Intrinsics, action::Push};
 
 use crate::{
-    bench::{BenchConfig, SceneResult, run_bench, score_frame},
+    cli::bench::{BenchConfig, SceneResult, run_bench, score_frame},
+    cli::eval::PushReport,
     draw::{Clip, arrow, dot, label_colour, line, overlay_labels},
-    episode::{Decision, EpisodeFrame, Stop, run_episode},
-    eval::PushReport,
+    eval::metrics::PushAverages,
     flow::{DisFlow, FlowParams, viz::flow_to_rgb},
-    imageio::{RgbImage, write_atomic, write_rgb8},
-    metrics::PushAverages,
-    robot::PushCommand,
+    io::image::{RgbImage, write_atomic, write_rgb8},
+    rig::episode::{Decision, EpisodeFrame, Stop, run_episode},
+    rig::robot::PushCommand,
+    rig::tracker::{Observation, Tracker},
     segment::{ClassicalSegmenter, SegmenterParams},
     sim::{Layout, SimConfig, SimRig, SimScene},
-    tracker::{Observation, Tracker},
 };
 
 /// The default loose demo scene: six objects; the static segmenter merges two pairs of
@@ -290,7 +290,7 @@ pub fn bench_spread(report: &DemoReport) -> anyhow::Result<String> {
         ..BenchConfig::new(SPREAD_SCENES, 1)
     };
     let (_, scenes) = run_bench(&cfg, |_| {})?;
-    let found = |m: Option<&crate::metrics::ImageMetrics>| {
+    let found = |m: Option<&crate::eval::metrics::ImageMetrics>| {
         m.map_or(0.0, |m| 100.0 * m.objects_detected_share)
     };
     let column = |pick: &dyn Fn(&SceneResult) -> f64| {

@@ -5,12 +5,12 @@
 //! Scene `i` of seed `S` is the simulator's scene [`scene_seed`]`(S, i)` of the configured
 //! scene family ([`BenchConfig::layout`]; the next attempt seed when no placement fits, as
 //! `riseg gen` does). On each scene one episode of
-//! Algorithm 1 runs ([`crate::episode::run_episode`]) with the built-in segmenter and flow: the loop picks
+//! Algorithm 1 runs ([`crate::rig::episode::run_episode`]) with the built-in segmenter and flow: the loop picks
 //! its own pushes, at most [`Config::max_pushes`]. Every captured frame `t` is scored
 //! against the simulator's ground truth three times: the static segmentation of that frame
 //! (the `static` rows), the accumulated RISeg mask (the `riseg` rows; at `t = 0` both are
 //! the static segmentation), and the motion ceiling of the episode's frames `0..=t`
-//! ([`crate::ceiling`], [`CeilingParams::DEFAULT`]; the `ceiling` rows), computed from the
+//! ([`crate::eval::ceiling`], [`CeilingParams::DEFAULT`]; the `ceiling` rows), computed from the
 //! same static segmentations and the simulator's true object poses. Row `t` averages the
 //! scenes that reached frame `t`; RISeg's share of the ceiling at push `t` is the ratio of
 //! the two rows' objects-found percentages. Timing is the
@@ -38,19 +38,19 @@ use riseg_core::{Config, Pose};
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    ceiling::{
+    cli::eval::{EvalReport, PushReport, write_ceiling_shares},
+    cli::generate::{MAX_ATTEMPTS, scene_seed},
+    eval::ceiling::{
         CeilingFrame, CeilingParams, MotionCeiling, moved, poses_by_label, same_motion,
         static_segments,
     },
-    episode::{EpisodeError, EpisodeFrame, Stop, run_episode},
-    eval::{EvalReport, PushReport, write_ceiling_shares},
+    eval::metrics::{ImageMetrics, MetricsError, PushAverages, image_metrics},
     flow::{DisFlow, FlowError, FlowParams},
-    generate::{MAX_ATTEMPTS, scene_seed},
-    metrics::{ImageMetrics, MetricsError, PushAverages, image_metrics},
-    scene::ObjectPose,
+    io::scene::ObjectPose,
+    rig::episode::{EpisodeError, EpisodeFrame, Stop, run_episode},
+    rig::tracker::{StageTimes, TrackError, Tracker},
     segment::{ClassicalSegmenter, SegmentError, SegmenterParams},
     sim::{Layout, SimConfig, SimError, SimRig, SimScene},
-    tracker::{StageTimes, TrackError, Tracker},
 };
 
 /// Why a benchmark failed.
@@ -506,7 +506,7 @@ mod tests {
     #![allow(clippy::unwrap_used, reason = "tests: a panic is the failure report")]
 
     use super::*;
-    use crate::ceiling::fixture::{H, W, at, row_of_three as truth, start};
+    use crate::eval::ceiling::fixture::{H, W, at, row_of_three as truth, start};
 
     /// The static segmentation merges 1 and 2 (segment 7) and finds 3 alone (segment 8).
     fn static_labels() -> Vec<u16> {

@@ -20,7 +20,7 @@
 //! STATIC/S/heat/NNNNNN.png    its 0-255 heatmap, 8-bit grey (optional, per frame)
 //! ```
 //!
-//! These are the names of a scene folder's own `flow/` and `label/` ([`crate::scene`]),
+//! These are the names of a scene folder's own `flow/` and `label/` ([`crate::io::scene`]),
 //! so a dataset `riseg gen` wrote is a valid `FLOW` (its exact flow) and `STATIC` (its
 //! ground truth as the static segmentation). Rules:
 //! - Every file must have the size `S/scene_camera.json` gives, and every frame its files
@@ -48,7 +48,7 @@
 //! types would instead have to be told, out of band, which scene and frame each call
 //! serves, and every mix of given and computed stages would be another tracker type.
 //!
-//! [`Observation`]: crate::tracker::Observation
+//! [`Observation`]: crate::rig::tracker::Observation
 
 use std::{
     ffi::OsStr,
@@ -56,17 +56,17 @@ use std::{
 };
 
 use crate::{
-    camera::SceneReplay,
     flow::{Flow, FlowEstimator},
-    imageio::{
+    io::image::{
         Gray16Image, ImageIoError, ImageProblem, ImageSizeError, read_flo, read_gray_widened,
         read_gray8, read_sized, write_gray16,
     },
-    scene::{
+    io::scene::{
         FLOW_DIR, HEAT_DIR, LABEL_DIR, Scene, SceneCamera, SceneError, frame_file, frame_file_name,
     },
+    rig::camera::SceneReplay,
+    rig::tracker::{GivenInputs, TrackError, Tracker},
     segment::{HEAT_CERTAIN, Segmentation, StaticSegmenter},
-    tracker::{GivenInputs, TrackError, Tracker},
 };
 
 /// Why a run failed; every variant names the scene folder or file.

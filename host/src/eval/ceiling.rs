@@ -45,7 +45,7 @@
 //! # Poses
 //!
 //! A scene folder records the true poses in `poses.json` (format and rules in
-//! [`crate::scene`]; read into [`Scene::poses`](crate::scene::Scene::poses), and given
+//! [`crate::io::scene`]; read into [`Scene::poses`](crate::io::scene::Scene::poses), and given
 //! per frame as [`CameraFrame::truth_poses`]). The simulator's frames carry them too.
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -54,8 +54,8 @@ use nalgebra::Point3;
 use riseg_core::Pose;
 
 use crate::{
-    camera::CameraFrame,
-    scene::ObjectPose,
+    io::scene::ObjectPose,
+    rig::camera::CameraFrame,
     segment::{union_find_join, union_find_root},
 };
 
@@ -369,7 +369,7 @@ pub(crate) fn poses_by_label(
 pub(crate) mod fixture {
     use riseg_core::Pose;
 
-    use crate::scene::ObjectPose;
+    use crate::io::scene::ObjectPose;
 
     /// Width of [`row_of_three`], pixels.
     pub(crate) const W: usize = 12;

@@ -10,8 +10,8 @@ use std::rc::Rc;
 
 use super::{MAX_PUSH_LEN_M, SimScene, TABLE_HALF_EXTENTS_M};
 use crate::{
-    camera::{Camera, CameraError, CameraFrame},
-    robot::{PushCommand, PushGeometry, PushLimits, Robot, RobotError, RobotSetup},
+    rig::camera::{Camera, CameraError, CameraFrame},
+    rig::robot::{PushCommand, PushGeometry, PushLimits, Robot, RobotError, RobotSetup},
 };
 
 /// Longest push the simulated arm accepts, metres (approach included).
@@ -80,7 +80,7 @@ impl Robot for SimRobot {
 }
 
 /// The simulated devices and their calibration; the loop
-/// ([`crate::episode::run_episode`]) uses them as it would a real camera and arm.
+/// ([`crate::rig::episode::run_episode`]) uses them as it would a real camera and arm.
 #[derive(Debug)]
 pub struct SimRig {
     /// The camera.

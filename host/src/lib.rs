@@ -16,13 +16,26 @@
 //! - [`draw`]: colours and drawing for pictures.
 //! - [`eval`]: UOIS metrics and the motion ceiling.
 //! - [`testkit`]: synthetic inputs for tests, benches and examples.
+//!
+//! ## Features
+//!
+//! - `cli` (default): the `riseg` binary and [`cli`] (clap, indicatif, anyhow); implies `sim`.
+//! - `sim` (default): the simulator [`sim`] (rapier3d, parry3d); implies `threads`.
+//! - `threads` (default): rayon in the optical flow and the renderer.
+//!
+//! `--no-default-features` leaves the pure parts (flow, segment, eval, io, rig, testkit),
+//! which build for `wasm32-unknown-unknown` and compute the same on every target
+//! (transcendentals through `libm`).
 
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod draw;
 pub mod eval;
 pub mod flow;
 pub mod io;
+mod par;
 pub mod rig;
 pub mod segment;
+#[cfg(feature = "sim")]
 pub mod sim;
 pub mod testkit;

@@ -298,3 +298,70 @@ pub fn write_dataset(
     }
     Ok(())
 }
+
+// --- the `riseg gen` command ----------------------------------------------------
+
+mod command {
+    use std::path::PathBuf;
+
+    use crate::cli::generate::{PREVIEW_DIR, scene_dir_name, write_dataset};
+    use anyhow::Context as _;
+    use clap::Args;
+    use indicatif::{ProgressBar, ProgressStyle};
+
+    use crate::cli::LayoutArg;
+
+    #[derive(Debug, Args)]
+    pub(in crate::cli) struct GenArgs {
+        /// Number of scenes to make.
+        #[arg(long, default_value_t = 1)]
+        scenes: usize,
+        /// Dataset seed; scene i is simulated from a seed derived from it and i.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Output folder (created if missing).
+        #[arg(long)]
+        out: PathBuf,
+        /// Pushes per scene; each scene has pushes + 1 frames.
+        #[arg(long, default_value_t = 3)]
+        pushes: usize,
+        /// Scene family: loose, packed or mixed (described above).
+        #[arg(long, value_enum, default_value_t = LayoutArg::Loose)]
+        layout: LayoutArg,
+    }
+
+    pub(in crate::cli) fn command(args: &GenArgs) -> anyhow::Result<()> {
+        let GenArgs {
+            scenes,
+            seed,
+            out,
+            pushes,
+            layout,
+        } = args;
+        let (scenes, seed, pushes, layout) = (*scenes, *seed, *pushes, layout.layout());
+        let bar = ProgressBar::new(scenes as u64);
+        bar.set_style(
+            ProgressStyle::with_template("{bar:30} {pos}/{len} scenes  {elapsed}  {msg}")
+                .context("progress bar template")?,
+        );
+        write_dataset(out, scenes, seed, layout, pushes, |i, g| {
+            bar.set_message(format!(
+                "{}: {} objects, {} pushes",
+                scene_dir_name(i),
+                g.objects,
+                g.pushes.len()
+            ));
+            bar.inc(1);
+        })
+        .with_context(|| format!("generating {scenes} {layout} scenes into {}", out.display()))?;
+        bar.finish();
+        println!(
+            "wrote {scenes} {layout} scenes to {}; previews in {}",
+            out.display(),
+            out.join(PREVIEW_DIR).display()
+        );
+        Ok(())
+    }
+}
+
+pub(in crate::cli) use command::*;

@@ -281,7 +281,7 @@ pub fn same_motion(a: [&Pose; 2], b: [&Pose; 2], params: &CeilingParams) -> bool
     // 2·atan2(|v|, |w|) of the quaternion between them: unlike nalgebra's acos form, it
     // keeps its precision for the fractions of a degree compared here.
     let between = motion_a.rotation.rotation_to(&motion_b.rotation);
-    let angle_rad = 2.0 * between.imag().norm().atan2(between.w.abs());
+    let angle_rad = 2.0 * libm::atan2f(between.imag().norm(), between.w.abs());
     angle_rad <= params.rot_floor_rad
         && [a[0], b[0]].iter().all(|before| {
             let centre = Point3::from(before.translation.vector);

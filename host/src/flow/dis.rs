@@ -188,6 +188,7 @@ const PAD: usize = 16;
 #[derive(Debug, Clone)]
 pub struct DisFlow {
     params: FlowParams,
+    #[cfg(feature = "threads")]
     pool: Option<Arc<rayon::ThreadPool>>,
     /// Buffers kept between calls (shared by clones).
     buffers: Arc<Pool>,
@@ -203,6 +204,7 @@ impl DisFlow {
         params.validate()?;
         Ok(Self {
             params,
+            #[cfg(feature = "threads")]
             pool: None,
             buffers: Arc::default(),
             flows: Arc::default(),
@@ -210,9 +212,11 @@ impl DisFlow {
     }
 
     /// The same estimator on its own pool of `threads` threads (`0`: rayon's global pool).
+    /// Only with the `threads` feature; without it the estimator runs on the calling thread.
     ///
     /// # Errors
     /// [`FlowError::ThreadPool`] if the operating system refuses the threads.
+    #[cfg(feature = "threads")]
     pub fn with_threads(mut self, threads: usize) -> Result<Self, FlowError> {
         self.pool = if threads == 0 {
             None
@@ -251,10 +255,11 @@ impl DisFlow {
         if !first.data.iter().chain(&second.data).all(|v| v.is_finite()) {
             return Err(FlowError::NonFinite);
         }
-        Ok(match &self.pool {
-            Some(pool) => pool.install(|| self.run(first, second)),
-            None => self.run(first, second),
-        })
+        #[cfg(feature = "threads")]
+        if let Some(pool) = &self.pool {
+            return Ok(pool.install(|| self.run(first, second)));
+        }
+        Ok(self.run(first, second))
     }
 
     /// Levels `(finest, coarsest)` for a `w x h` image (at least one patch fits at both).
@@ -267,7 +272,7 @@ impl DisFlow {
         let auto = {
             // A patch covers about a quarter of the longer side at the coarsest level.
             let ratio = w.max(h) as f32 / (4 * p) as f32;
-            ratio.log2().round().max(0.0) as usize
+            libm::log2f(ratio).round().max(0.0) as usize
         };
         let finest = self.params.finest_level.min(max_level);
         let coarsest = self
@@ -474,7 +479,7 @@ mod tests {
             let max = f
                 .as_slice()
                 .iter()
-                .map(|v| v[0].hypot(v[1]))
+                .map(|v| libm::hypotf(v[0], v[1]))
                 .fold(0.0f32, f32::max);
             eprintln!("zero motion: max |flow| {max:e} px");
             assert!(max < 0.05, "{params:?}: max |flow| {max}");

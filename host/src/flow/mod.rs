@@ -95,6 +95,7 @@ pub enum FlowError {
     #[error("the mask selects no pixel")]
     EmptySelection,
     /// The dedicated thread pool could not be built.
+    #[cfg(feature = "threads")]
     #[error("cannot build the flow thread pool")]
     ThreadPool(#[from] rayon::ThreadPoolBuildError),
 }
@@ -325,7 +326,7 @@ impl Flow {
         let mut count = 0usize;
         for (i, (a, b)) in self.data.iter().zip(&truth.data).enumerate() {
             if is_known_flow(*b) && mask.is_none_or(|m| m[i]) {
-                sum += f64::from((a[0] - b[0]).hypot(a[1] - b[1]));
+                sum += f64::from(libm::hypotf(a[0] - b[0], a[1] - b[1]));
                 count += 1;
             }
         }

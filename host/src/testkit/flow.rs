@@ -16,7 +16,7 @@
 //! second image, on the same layer (so not occluded).
 
 use crate::flow::{Flow, GrayF32, RgbView};
-use rayon::prelude::*;
+use crate::par::*;
 use riseg_core::rng::Pcg32;
 
 /// The outline of a layer, in the layer's own coordinates (origin at its centre, before

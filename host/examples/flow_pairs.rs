@@ -24,7 +24,7 @@ use riseg::flow::{
     DisFlow, Flow, FlowEstimator as _, FlowParams, RgbView,
     flo::{read_flo, write_atomic, write_flo},
 };
-use riseg::testkit::flow::Scene;
+use riseg::testkit::flow::FlowScene;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -65,7 +65,7 @@ struct Written {
 }
 
 fn textured_pair(w: usize, h: usize, seed: u64) -> Written {
-    let p = Scene::random_objects(w, h, seed).render();
+    let p = FlowScene::random_objects(w, h, seed).render();
     let moving = p
         .labels
         .iter()

@@ -28,7 +28,7 @@ use crate::{
     io::image::{Gray16Image, ImageIoError, RgbImage, write_rgb8},
     io::scene::{PushAction, Scene, SceneCamera, SceneError},
     sim::{
-        DEFAULT_PUSH_LEN_M, Layout, ObjectBounds, RgbdFrame, ScriptedPush, SimConfig, SimError,
+        DEFAULT_PUSH_LEN_M, Layout, ObjectBounds, ScriptedPush, SimConfig, SimError, SimFrame,
         SimScene, TABLE_HALF_EXTENTS_M, ground_truth_flow,
     },
 };
@@ -103,7 +103,7 @@ pub fn scene_seed(dataset_seed: u64, index: usize) -> u64 {
     z ^ (z >> 31)
 }
 
-fn depth_to_units(frame: &RgbdFrame) -> Gray16Image {
+fn depth_to_units(frame: &SimFrame) -> Gray16Image {
     frame.depth_m.map(|&d| {
         let units = (d / DEPTH_UNIT_M).round();
         if units >= 1.0 {
@@ -171,7 +171,7 @@ fn simulate(
         Err(e) => return Err(e.into()),
     };
     let labels: Vec<u16> = sim.objects().iter().map(|o| o.label).collect();
-    let hidden = |frame: &RgbdFrame| {
+    let hidden = |frame: &SimFrame| {
         labels
             .iter()
             .find(|&&l| visible_px(&frame.labels, l) < MIN_VISIBLE_PX)

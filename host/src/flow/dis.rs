@@ -435,7 +435,7 @@ impl FlowEstimator for DisFlow {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testkit::flow::Scene;
+    use crate::testkit::flow::FlowScene;
 
     fn medium() -> DisFlow {
         DisFlow::new(FlowParams::MEDIUM).unwrap()
@@ -488,16 +488,17 @@ mod tests {
 
     #[test]
     fn rigid_objects_are_tracked() {
-        let p = Scene::random_objects(640, 480, 11).render();
+        let p = FlowScene::random_objects(640, 480, 11).render();
         let f = medium().estimate(p.first_view(), p.second_view()).unwrap();
         let epe = f.mean_epe(&p.flow, Some(&p.interior)).unwrap();
         eprintln!("rigid objects: interior EPE {epe:.4} px");
         assert!(epe < 0.5, "EPE {epe}");
     }
 
+    #[cfg(feature = "threads")]
     #[test]
     fn thread_count_does_not_change_the_result() {
-        let p = Scene::random_objects(320, 240, 3).render();
+        let p = FlowScene::random_objects(320, 240, 3).render();
         let one = medium().with_threads(1).unwrap();
         let three = medium().with_threads(3).unwrap();
         let a = one.estimate(p.first_view(), p.second_view()).unwrap();

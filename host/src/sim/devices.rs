@@ -8,16 +8,17 @@
 use core::cell::RefCell;
 use std::rc::Rc;
 
-use super::{MAX_PUSH_LEN_M, SimScene, TABLE_HALF_EXTENTS_M};
+use super::{PUSHER_MAX_TRAVEL_M, SimScene, TABLE_HALF_EXTENTS_M};
 use crate::{
     rig::camera::{Camera, CameraError, CameraFrame},
     rig::robot::{PushCommand, PushGeometry, PushLimits, Robot, RobotError, RobotSetup},
 };
 
-/// Longest push the simulated arm accepts, metres (approach included).
-pub const SIM_MAX_PUSH_LEN_M: f32 = 0.05;
+/// Longest push the simulated arm accepts, metres (approach included); its
+/// [`PushLimits::max_push_len_m`].
+pub const ARM_MAX_PUSH_LEN_M: f32 = 0.05;
 /// Highest the simulated tool may go over the table, metres.
-pub const SIM_MAX_TOOL_HEIGHT_M: f32 = 0.3;
+pub const ARM_MAX_TOOL_HEIGHT_M: f32 = 0.3;
 
 /// Renders the shared scene, with its ground-truth labels and object poses.
 #[derive(Debug)]
@@ -94,7 +95,7 @@ pub struct SimRig {
 
 impl SimRig {
     /// Devices over `scene`. The workspace box is the table top (x, y) from the tool's
-    /// radius up to [`SIM_MAX_TOOL_HEIGHT_M`]; pushes up to [`SIM_MAX_PUSH_LEN_M`].
+    /// radius up to [`ARM_MAX_TOOL_HEIGHT_M`]; pushes up to [`ARM_MAX_PUSH_LEN_M`].
     #[must_use]
     pub fn new(scene: SimScene) -> Self {
         let radius_m = scene.config().pusher_radius_m;
@@ -102,8 +103,8 @@ impl SimRig {
         let [hx, hy] = TABLE_HALF_EXTENTS_M;
         let limits = PushLimits {
             workspace_min_m: [-hx, -hy, radius_m],
-            workspace_max_m: [hx, hy, SIM_MAX_TOOL_HEIGHT_M],
-            max_push_len_m: SIM_MAX_PUSH_LEN_M.min(MAX_PUSH_LEN_M),
+            workspace_max_m: [hx, hy, ARM_MAX_TOOL_HEIGHT_M],
+            max_push_len_m: ARM_MAX_PUSH_LEN_M.min(PUSHER_MAX_TRAVEL_M),
         };
         let geometry = PushGeometry {
             table_z_m: 0.0,

@@ -23,8 +23,8 @@
 //!   is fixed in this frame, so it moves with the object.
 //!
 //! # Ground truth
-//! [`RgbdFrame::labels`] holds instance ids (`0` = table/background, objects `1..=n`) and
-//! [`RgbdFrame::true_depth_m`] the exact depth, both per ray. [`ground_truth_flow`] turns
+//! [`SimFrame::labels`] holds instance ids (`0` = table/background, objects `1..=n`) and
+//! [`SimFrame::true_depth_m`] the exact depth, both per ray. [`ground_truth_flow`] turns
 //! two pose sets into the exact forward flow.
 //!
 //! # Units
@@ -55,10 +55,10 @@ use rapier3d::prelude::{
 };
 use riseg_core::{Intrinsics, Pose, rng::Pcg32};
 
-/// Where one object is: its label (as in [`RgbdFrame::labels`]) and body frame in the world
+/// Where one object is: its label (as in [`SimFrame::labels`]) and body frame in the world
 /// frame. Defined with the scene folder format, which stores it (`poses.json`).
 pub use crate::io::scene::ObjectPose;
-pub use devices::{SIM_MAX_PUSH_LEN_M, SIM_MAX_TOOL_HEIGHT_M, SimCamera, SimRig, SimRobot};
+pub use devices::{ARM_MAX_PUSH_LEN_M, ARM_MAX_TOOL_HEIGHT_M, SimCamera, SimRig, SimRobot};
 pub use flow::{UNKNOWN_FLOW, ground_truth_flow};
 pub use layout::{Layout, ObjectShape};
 
@@ -77,10 +77,13 @@ pub const TABLE_HALF_EXTENTS_M: [f32; 2] = [0.6, 0.6];
 const TABLE_THICKNESS_M: f32 = 0.04;
 /// Two objects closer than this count as touching, metres.
 pub const TOUCH_GAP_M: f32 = 0.002;
-/// Default push length (the paper's `d_push`), metres.
-pub const DEFAULT_PUSH_LEN_M: f32 = 0.02;
-/// Pushes longer than this are refused, metres.
-pub const MAX_PUSH_LEN_M: f32 = 0.3;
+/// Length of the scripted pushes of `riseg gen`: FindAction's push length (the paper's
+/// `d_push`, [`riseg_core::Config::push_len_m`]), metres.
+pub const DEFAULT_PUSH_LEN_M: f32 = riseg_core::Config::PAPER.push_len_m;
+/// Longest travel [`SimScene::push`] moves the pusher ball, metres: a sanity bound of the
+/// physics, not of the arm (the simulated arm refuses pushes longer than
+/// [`ARM_MAX_PUSH_LEN_M`]).
+pub const PUSHER_MAX_TRAVEL_M: f32 = 0.3;
 
 /// Everything the simulator can be asked to vary, with a D415-like preset.
 ///
@@ -275,7 +278,7 @@ pub struct ScriptedPush {
 
 /// One RGB-D frame with its ground truth.
 #[derive(Debug, Clone, PartialEq)]
-pub struct RgbdFrame {
+pub struct SimFrame {
     /// Colour, with sensor noise.
     pub rgb: RgbImage,
     /// Depth in metres with sensor noise; `0.0` = no reading (depth edges, nothing hit).
@@ -531,7 +534,7 @@ impl SimScene {
     }
 
     /// Renders the scene as the camera sees it now, with fresh sensor noise.
-    pub fn render(&mut self) -> RgbdFrame {
+    pub fn render(&mut self) -> SimFrame {
         let table = self.world.colliders.get(self.table);
         let mut surfaces: Vec<Surface<'_>> = Vec::with_capacity(self.objects.len() + 1);
         if let Some(t) = table {
@@ -571,7 +574,7 @@ impl SimScene {
         let noise_seed = mix64(self.seed ^ mix64(0xF8A3E ^ self.frames_rendered));
         self.frames_rendered += 1;
         let r = render::render(&surfaces, &sensor, noise_seed);
-        RgbdFrame {
+        SimFrame {
             rgb: r.rgb,
             depth_m: r.depth_m,
             labels: r.labels,
@@ -614,7 +617,7 @@ impl SimScene {
     ///
     /// # Errors
     /// [`SimError::BadPush`] (nothing moves) if a value is not finite, the direction is
-    /// zero, the length is not in `(0, MAX_PUSH_LEN_M]`, or the start is below the table
+    /// zero, the length is not in `(0, PUSHER_MAX_TRAVEL_M]`, or the start is below the table
     /// top by more than the pusher radius allows.
     pub fn push(&mut self, cmd: &PushCommand) -> Result<(), SimError> {
         let (start_world_m, direction_world, length_m) =
@@ -629,9 +632,9 @@ impl SimScene {
         let Some(dir) = direction_world.try_normalize(1e-6) else {
             return Err(SimError::BadPush("the direction is zero".into()));
         };
-        if !(length_m > 0.0 && length_m <= MAX_PUSH_LEN_M) {
+        if !(length_m > 0.0 && length_m <= PUSHER_MAX_TRAVEL_M) {
             return Err(SimError::BadPush(format!(
-                "length {length_m} m is not in (0, {MAX_PUSH_LEN_M}]"
+                "length {length_m} m is not in (0, {PUSHER_MAX_TRAVEL_M}]"
             )));
         }
         let r_m = self.config.pusher_radius_m;

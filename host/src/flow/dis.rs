@@ -23,9 +23,12 @@
 //!
 //! # Examples
 //! ```
-//! use riseg::flow::{DisFlow, FlowParams, GrayF32, testdata};
+//! use riseg::{
+//!     flow::{DisFlow, FlowParams},
+//!     testkit::flow::translated,
+//! };
 //!
-//! let pair = crate::testkit::flow::translated(160, 120, 7, [1.5, -0.75]);
+//! let pair = translated(160, 120, 7, [1.5, -0.75]);
 //! let (a, b) = (pair.first_gray(), pair.second_gray());
 //! let flow = DisFlow::new(FlowParams::MEDIUM)?.estimate_gray(&a, &b)?;
 //! let epe = flow.mean_epe(&pair.flow, Some(&pair.interior))?;
@@ -108,7 +111,7 @@ impl FlowParams {
     ///
     /// Few Gauss-Newton steps per patch: with spatial propagation and the coarser level's
     /// refined flow as starting points, more steps mostly let patches that straddle a
-    /// motion boundary slide to the other motion (measured on `testdata` scenes).
+    /// motion boundary slide to the other motion (measured on `testkit::flow` scenes).
     pub const FAST: Self = Self {
         finest_level: 1,
         gd_iters: 4,

@@ -26,10 +26,16 @@ pub enum Buffer {
     Labels,
     /// Seed scratch of CorrectMask.
     Seeds,
-    /// Clustering scratch of FindAction.
-    Clusters,
-    /// Certain-region runs of FindAction.
+    /// FindAction: each sample's squared distance to its nearest centre.
+    SampleDist,
+    /// FindAction: each sample's nearest centre (or certain region).
+    SampleNearest,
+    /// FindAction: certain and uncertain pixel counts of each row.
+    RowCounts,
+    /// FindAction: runs of certain pixels.
     Runs,
+    /// FindAction: each row's first run.
+    RowRuns,
 }
 
 /// Why a `riseg-core` call failed.

@@ -2,6 +2,8 @@
 #![no_std]
 #![deny(missing_docs)]
 
+#[cfg(feature = "alloc")]
+extern crate alloc;
 #[cfg(test)]
 extern crate std;
 
@@ -13,6 +15,8 @@ pub mod group;
 pub mod image;
 pub mod mask;
 pub mod math;
+#[cfg(feature = "alloc")]
+pub mod owned;
 pub mod pipeline;
 pub mod rng;
 pub mod se3;

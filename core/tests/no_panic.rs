@@ -7,12 +7,11 @@
 use nalgebra::Point3;
 use proptest::prelude::*;
 use riseg_core::{
-    Config, ImageView, Intrinsics, Pose, Twist,
-    action::{ActionScratch, ActionScratchLen, find_action},
-    frames::{BodyFrame, FrameSample, MotionInput},
-    group::{GroupInfo, GroupScratch},
-    mask::MaskScratch,
-    pipeline::{Workspace, WorkspaceLen, update_mask},
+    Config, ImageView, Intrinsics,
+    action::find_action,
+    frames::MotionInput,
+    owned::{ActionBuf, WorkspaceBuf},
+    pipeline::update_mask,
 };
 
 #[path = "common/uniform.rs"]
@@ -114,33 +113,11 @@ proptest! {
             ImageView::packed(w, h, &s.flow).unwrap(),
             k,
         ).unwrap();
-        let len = WorkspaceLen::for_config(&cfg, w, h);
-        let (n, px, seg) = (len.frames, len.mask.pixels, len.mask.segments);
-        let mut samples = vec![FrameSample::EMPTY; n];
-        let mut frames = vec![BodyFrame::EMPTY; n];
-        let mut twists = vec![Twist::ZERO; n];
-        let (mut fl, mut fg) = (vec![0u16; n], vec![0u16; n]);
-        let mut groups = vec![GroupInfo::default(); n];
-        let mut pair_bin = vec![0u8; len.group.pair_bin];
-        let (mut parent, mut links, mut attach) = (vec![0; n], vec![0; n], vec![0; n]);
-        let (mut key, mut source, mut segment, mut queue) = (vec![0; px], vec![0; px], vec![0; px], vec![0; px]);
-        let mut claim = vec![0u16; px];
-        let (mut ss, mut st, mut sk) = (vec![0; seg], vec![0; seg], vec![0; seg]);
-        let mut seeds = vec![[0u32; 3]; len.mask.seeds];
-        let mut motions = vec![Pose::identity(); len.mask.motions];
-        let mut ws = Workspace {
-            samples: &mut samples, frames: &mut frames, twists: &mut twists,
-            frame_labels: &mut fl, frame_group: &mut fg, groups: &mut groups,
-            group: GroupScratch { pair_bin: &mut pair_bin, parent: &mut parent, links: &mut links, attach: &mut attach },
-            mask: MaskScratch {
-                key: &mut key, source: &mut source, segment: &mut segment, queue: &mut queue,
-                claim: &mut claim, segment_size: &mut ss, segment_target: &mut st, segment_key: &mut sk,
-                seeds: &mut seeds, motions: &mut motions,
-            },
-        };
+        let mut buf = WorkspaceBuf::new(&cfg, w, h);
+        let px = buf.len().mask.pixels;
         let mut out = vec![0u16; px];
         let static_t1 = ImageView::packed(w, h, &s.static_t1).unwrap();
-        if let Ok(report) = update_mask(&input, &static_t1, &cfg, &mut ws, &mut out) {
+        if let Ok(report) = update_mask(&input, &static_t1, &cfg, &mut buf.view(), &mut out) {
             // Post-condition: background stays background, and no label exceeds the report.
             for (&o, &st) in out.iter().zip(&s.static_t1) {
                 prop_assert!(st != 0 || o == 0);
@@ -157,22 +134,10 @@ proptest! {
         cfg.seed = seed;
         let (w, h) = (s.width, s.height);
         let k = Intrinsics::new(40.0, 40.0, w as f32 / 2.0, h as f32 / 2.0).unwrap();
-        let len = ActionScratchLen::for_config(&cfg, w, h);
-        let mut certain = vec![0.0; len.certain];
-        let mut uncertain = vec![0.0; len.uncertain];
-        let mut dist2 = vec![0.0; len.dist2];
-        let mut nearest = vec![0; len.nearest];
-        let mut row_counts = vec![0; len.row_counts];
-        let mut runs = vec![0; len.runs];
-        let mut row_runs = vec![0; len.row_runs];
-        let scratch = ActionScratch {
-            certain: &mut certain, uncertain: &mut uncertain, dist2: &mut dist2,
-            nearest: &mut nearest, row_counts: &mut row_counts, runs: &mut runs,
-            row_runs: &mut row_runs,
-        };
+        let mut buf = ActionBuf::new(&cfg, w, h);
         let heat = ImageView::packed(w, h, &s.heatmap).unwrap();
         let depth = ImageView::packed(w, h, &s.depth_t).unwrap();
-        if let Ok(report) = find_action(&heat, &depth, &k, &cfg, scratch)
+        if let Ok(report) = find_action(&heat, &depth, &ImageView::packed(w, h, &s.static_t1).unwrap(), &k, &cfg, buf.view())
             && let Some(push) = report.push()
         {
             prop_assert!(push.direction_cam.iter().all(|c| c.is_finite()));

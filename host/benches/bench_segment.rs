@@ -8,11 +8,8 @@ use std::path::PathBuf;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use riseg::{
-    imageio,
-    segment::{
-        ClassicalSegmenter, RgbdFrame, SegmenterParams, StaticSegmenter,
-        synthetic::SyntheticTabletop,
-    },
+    segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams, StaticSegmenter},
+    testkit::segment::SyntheticTabletop,
 };
 use riseg_core::Intrinsics;
 
@@ -32,8 +29,8 @@ fn segment(c: &mut Criterion) {
     );
     let demo = root.join("ucn-demo/data/demo");
     match (
-        imageio::read_rgb8(&demo.join("000000-color.png")),
-        imageio::read_gray16(&demo.join("000000-depth.png")),
+        riseg::io::image::read_rgb8(&demo.join("000000-color.png")),
+        riseg::io::image::read_gray16(&demo.join("000000-depth.png")),
     ) {
         (Ok(rgb), Ok(depth)) => {
             let depth_m: Vec<f32> = depth

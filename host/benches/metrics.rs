@@ -7,7 +7,7 @@
 use core::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use riseg::metrics::image_metrics;
+use riseg::eval::metrics::image_metrics;
 use riseg_core::rng::Pcg32;
 
 const WIDTH: usize = 640;

@@ -7,11 +7,11 @@
 use std::{collections::BTreeMap, path::PathBuf};
 
 use riseg::{
-    camera::SceneReplay,
     flow::{DisFlow, Flow, FlowParams},
-    scene::Scene,
+    io::scene::Scene,
+    rig::camera::SceneReplay,
+    rig::tracker::{GivenInputs, Tracker},
     segment::{ClassicalSegmenter, SegmenterParams},
-    tracker::{GivenInputs, Tracker},
 };
 use riseg_core::Config;
 

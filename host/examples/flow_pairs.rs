@@ -1,7 +1,7 @@
 //! Writes image pairs with exact ground-truth flow into a folder, then times riseg's DIS
 //! flow on them on one thread and prints endpoint errors. Two kinds of pairs, 640x480:
 //! `--kind textured` (default), textured rigid objects on a textured background moved by
-//! `riseg::flow::testdata`; `--kind sim`, the first push of the simulator's scenes (the
+//! `riseg::testkit::flow`; `--kind sim`, the first push of the simulator's scenes (the
 //! frames `riseg gen` writes, colour rounded to 8 bits; flow unknown where a pixel has no
 //! 3-D point, 1e10 in the `.flo`, is skipped).
 //!
@@ -23,8 +23,8 @@ use clap::Parser;
 use riseg::flow::{
     DisFlow, Flow, FlowEstimator as _, FlowParams, RgbView,
     flo::{read_flo, write_atomic, write_flo},
-    testdata::Scene,
 };
+use riseg::testkit::flow::FlowScene;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -65,7 +65,7 @@ struct Written {
 }
 
 fn textured_pair(w: usize, h: usize, seed: u64) -> Written {
-    let p = Scene::random_objects(w, h, seed).render();
+    let p = FlowScene::random_objects(w, h, seed).render();
     let moving = p
         .labels
         .iter()
@@ -89,7 +89,7 @@ fn textured_pair(w: usize, h: usize, seed: u64) -> Written {
 /// Frames 0 and 1 of the simulated scene `seed` (one scripted push), with the exact flow;
 /// moving = object pixels whose true flow is known and longer than 0.1 px.
 fn sim_pair(seed: u64) -> Result<Written> {
-    let g = riseg::generate::generate_scene(seed, riseg::sim::Layout::Loose, 1)?;
+    let g = riseg::cli::generate::generate_scene(seed, riseg::sim::Layout::Loose, 1)?;
     let s = &g.scene;
     let (w, h) = (s.camera.width as usize, s.camera.height as usize);
     let flow_image = s

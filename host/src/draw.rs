@@ -2,7 +2,7 @@
 //! lines, arrows and dots. Everything clips to a rectangle of the image, so a shape that
 //! leaves it is cut, never wrapped or a panic.
 
-use crate::imageio::RgbImage;
+use crate::io::image::RgbImage;
 
 /// A distinct, stable colour per instance label (golden-ratio hues, bright enough to read
 /// on black); `0` is black.

@@ -3,34 +3,39 @@
 //! ## This crate
 //!
 //! `riseg` is the host side of RISeg. It owns everything `riseg-core` leaves to the caller:
-//! buffers (`Vec`-backed workspaces), file I/O, devices, the simulator and the CLI.
+//! devices, file I/O, the simulator, the built-in segmenter and optical flow, scoring and
+//! the CLI. Modules by role, each importing only the ones below it:
 //!
-//! - [`imageio`]: owned images, PNG and Middlebury `.flo` files, atomic writes.
-//! - [`scene`]: the scene folder format (read and written).
+//! - [`cli`]: the `riseg` subcommands (`demo`, `bench`, `gen`, `run`, `eval`, ...).
 //! - [`sim`]: the simulated tabletop (rapier3d physics, parry3d ray-cast RGB-D, exact
-//!   ground truth).
-//! - [`generate`]: simulated datasets in the scene folder format (`riseg gen`).
-//! - [`preview`]: a picture of a scene for people.
-//! - [`ceiling`]: the motion ceiling, the best mask motion could reveal, that RISeg is
-//!   judged against.
+//!   ground truth): one camera and one robot for the loop.
+//! - [`rig`]: the loop of Algorithm 1 and its seams: camera, tracker, episode, robot.
+//! - [`segment`]: the built-in static segmenter (labels + FindAction's heatmap).
+//! - [`flow`]: the built-in dense optical flow (DIS).
+//! - [`io`]: owned images, PNG and `.flo` files, atomic writes, the scene folder format.
+//! - [`draw`]: colours and drawing for pictures.
+//! - [`eval`]: UOIS metrics and the motion ceiling.
+//! - [`testkit`]: synthetic inputs for tests, benches and examples.
+//!
+//! ## Features
+//!
+//! - `cli` (default): the `riseg` binary and [`cli`] (clap, indicatif, anyhow); implies `sim`.
+//! - `sim` (default): the simulator [`sim`] (rapier3d, parry3d); implies `threads`.
+//! - `threads` (default): rayon in the optical flow and the renderer.
+//!
+//! `--no-default-features` leaves the pure parts (flow, segment, eval, io, rig, testkit),
+//! which build for `wasm32-unknown-unknown` and compute the same on every target
+//! (transcendentals through `libm`).
 
-pub mod bench;
-pub mod camera;
-pub mod ceiling;
-pub mod demo;
+#[cfg(feature = "cli")]
+pub mod cli;
 pub mod draw;
-pub mod episode;
 pub mod eval;
 pub mod flow;
-pub mod generate;
-pub mod imageio;
-pub mod metrics;
-pub mod preview;
-pub mod replay;
-pub mod robot;
-pub mod scene;
+pub mod io;
+mod par;
+pub mod rig;
 pub mod segment;
+#[cfg(feature = "sim")]
 pub mod sim;
-pub mod synthetic;
-pub mod tracker;
-pub mod workspace;
+pub mod testkit;

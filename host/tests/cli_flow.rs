@@ -1,7 +1,7 @@
 //! `riseg flow` end to end: a generated pair in, a .flo and a colour-wheel PNG out, and
 //! the errors for bad input name the file.
 
-use riseg::flow::{flo::read_flo, testdata};
+use riseg::flow::flo::read_flo;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -29,7 +29,7 @@ fn riseg(args: &[&Path]) -> std::process::Output {
 #[test]
 fn writes_flo_and_viz() {
     let d = dir("ok");
-    let pair = testdata::translated(160, 120, 9, [2.5, -1.5]);
+    let pair = riseg::testkit::flow::translated(160, 120, 9, [2.5, -1.5]);
     let (a, b) = (d.join("a.png"), d.join("b.png"));
     save(&a, 160, 120, pair.first.clone());
     save(&b, 160, 120, pair.second.clone());
@@ -48,7 +48,7 @@ fn writes_flo_and_viz() {
 #[test]
 fn bad_input_is_an_error_naming_the_file() {
     let d = dir("bad");
-    let pair = testdata::translated(64, 48, 2, [1.0, 0.0]);
+    let pair = riseg::testkit::flow::translated(64, 48, 2, [1.0, 0.0]);
     let a = d.join("a.png");
     save(&a, 64, 48, pair.first.clone());
     let small = d.join("small.png");

@@ -3,7 +3,7 @@
 
 use std::process::Command;
 
-use riseg::scene::Scene;
+use riseg::io::scene::Scene;
 
 fn riseg() -> Command {
     Command::new(env!("CARGO_BIN_EXE_riseg"))

@@ -18,16 +18,17 @@ use std::{
 };
 
 use riseg::{
+    cli::run::{InputDirs, replay_scene},
     flow::{DisFlow, Flow, FlowParams, UNKNOWN_FLOW_MIN_PX},
-    imageio::{self, FlowImage, Gray8Image, Gray16Image},
-    replay::{InputDirs, replay_scene},
-    scene::{Scene, frame_file},
+    io::image::{FlowImage, Gray8Image, Gray16Image},
+    io::scene::{Scene, frame_file},
+    rig::tracker::{GivenInputs, TrackError, Tracker},
     segment::{ClassicalSegmenter, HEAT_CERTAIN, SegmenterParams},
-    synthetic::SyntheticStep,
-    tracker::{GivenInputs, TrackError, Tracker},
-    workspace::WorkspaceBuf,
+    testkit::SyntheticStep,
 };
-use riseg_core::{Config, ImageView, frames::MotionInput, pipeline::update_mask};
+use riseg_core::{
+    Config, ImageView, frames::MotionInput, owned::WorkspaceBuf, pipeline::update_mask,
+};
 
 const SCENE: &str = "scene_000";
 
@@ -90,7 +91,7 @@ fn run(out: &Path, extra: &[&str]) -> Output {
 fn written_masks(out: &Path, frames: usize) -> Vec<Vec<u16>> {
     (0..frames)
         .map(|t| {
-            imageio::read_gray16(&frame_file(&out.join(SCENE), "label", t, "png"))
+            riseg::io::image::read_gray16(&frame_file(&out.join(SCENE), "label", t, "png"))
                 .unwrap()
                 .into_vec()
         })
@@ -124,7 +125,7 @@ fn flow_dir_with(root: &Path, flow: &FlowImage) -> PathBuf {
     let dir = root.join("flows");
     let file = frame_file(&dir.join(SCENE), "flow", 0, "flo");
     fs::create_dir_all(file.parent().unwrap()).unwrap();
-    imageio::write_flo(&file, flow).unwrap();
+    riseg::io::image::write_flo(&file, flow).unwrap();
     dir
 }
 
@@ -235,7 +236,7 @@ fn heatmaps_are_read_when_present_and_derived_from_the_labels_otherwise() {
         1 => 3,
         _ => 7,
     });
-    imageio::write_gray16(
+    riseg::io::image::write_gray16(
         &frame_file(&statics.join(SCENE), "label", 1, "png"),
         &sparse,
     )
@@ -243,7 +244,7 @@ fn heatmaps_are_read_when_present_and_derived_from_the_labels_otherwise() {
     let heat = Gray8Image::from_fn(w, h, |x, y| ((x + y) % 256) as u8);
     let heat_dir = statics.join(SCENE).join("heat");
     fs::create_dir_all(&heat_dir).unwrap();
-    imageio::write_gray8(&heat_dir.join("000000.png"), &heat).unwrap();
+    riseg::io::image::write_gray8(&heat_dir.join("000000.png"), &heat).unwrap();
 
     let dirs = InputDirs {
         flow: None,
@@ -306,7 +307,7 @@ fn a_16_bit_heatmap_is_refused_naming_it() {
     let heat = frame_file(&statics.join(SCENE), "heat", 0, "png");
     fs::create_dir_all(heat.parent().unwrap()).unwrap();
     let (w, h) = (scene.camera.width, scene.camera.height);
-    imageio::write_gray16(&heat, &Gray16Image::from_fn(w, h, |_, _| 200)).unwrap();
+    riseg::io::image::write_gray16(&heat, &Gray16Image::from_fn(w, h, |_, _| 200)).unwrap();
     let pred = tmp.path().join("pred");
     let out = run(&pred, &["--static-dir", path_arg(&statics)]);
     assert_failed_naming(
@@ -376,7 +377,7 @@ fn mis_sized_flow_and_labels_are_named_with_both_sizes() {
 
     let statics = static_dir_with_truth(tmp.path());
     let png = frame_file(&statics.join(SCENE), "label", 1, "png");
-    imageio::write_gray16(&png, &Gray16Image::from_fn(w, h + 1, |_, _| 1)).unwrap();
+    riseg::io::image::write_gray16(&png, &Gray16Image::from_fn(w, h + 1, |_, _| 1)).unwrap();
     let out = run(&pred, &["--static-dir", path_arg(&statics)]);
     assert_failed_naming(
         &out,

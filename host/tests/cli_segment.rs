@@ -9,9 +9,9 @@ use std::{
 };
 
 use riseg::{
-    imageio::{self, Gray8Image, Gray16Image, Image, RgbImage},
-    scene::{self, SceneCamera},
-    segment::synthetic::SyntheticTabletop,
+    io::image::{Gray8Image, Gray16Image, Image, RgbImage},
+    io::scene::{self, SceneCamera},
+    testkit::segment::SyntheticTabletop,
 };
 
 struct Scene {
@@ -28,14 +28,14 @@ impl Scene {
         let t = SyntheticTabletop::boxes(320, 240, 3).expect("test setup");
         let k = t.intrinsics;
         let rgb = Image::from_vec(320, 240, t.rgb.clone()).expect("test setup");
-        imageio::write_rgb8(&dir.join("rgb.png"), &rgb).expect("test setup");
+        riseg::io::image::write_rgb8(&dir.join("rgb.png"), &rgb).expect("test setup");
         let mm: Vec<u16> = t
             .depth_m
             .iter()
             .map(|z| (z * 1000.0).round() as u16)
             .collect();
         let depth = Image::from_vec(320, 240, mm).expect("test setup");
-        imageio::write_gray16(&dir.join("depth.png"), &depth).expect("test setup");
+        riseg::io::image::write_gray16(&dir.join("depth.png"), &depth).expect("test setup");
         fs::write(
             dir.join("scene_camera.json"),
             format!(
@@ -114,7 +114,7 @@ fn segment_writes_labels_heatmap_and_picture() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("segments"));
-    let labels = imageio::read_gray16(&scene.path("labels.png")).unwrap();
+    let labels = riseg::io::image::read_gray16(&scene.path("labels.png")).unwrap();
     assert_eq!((labels.width(), labels.height()), (320, 240));
     let segments = labels.as_slice().iter().copied().max().unwrap();
     assert!(segments >= 3, "{segments} segments");
@@ -122,7 +122,7 @@ fn segment_writes_labels_heatmap_and_picture() {
     assert!(matches!(heat, image::DynamicImage::ImageLuma8(_)));
     let heat = heat.into_luma8();
     assert!(heat.pixels().any(|p| p.0[0] >= 150) && heat.pixels().any(|p| p.0[0] < 120));
-    let viz = imageio::read_rgb8(&scene.path("viz.png")).unwrap();
+    let viz = riseg::io::image::read_rgb8(&scene.path("viz.png")).unwrap();
     assert_eq!((viz.width(), viz.height()), (960, 240));
     assert_no_temporaries(&scene.dir);
 }
@@ -139,12 +139,12 @@ fn bad_inputs_are_errors_naming_the_file() {
     scene.assert_fails_naming(&out, "corrupt.png", "corrupt");
     // Wrong bit depth: 8-bit depth.
     let depth8 = Gray8Image::from_vec(320, 240, vec![100; 320 * 240]).unwrap();
-    imageio::write_gray8(&scene.path("depth8.png"), &depth8).unwrap();
+    riseg::io::image::write_gray8(&scene.path("depth8.png"), &depth8).unwrap();
     let out = scene.run("rgb.png", "depth8.png");
     scene.assert_fails_naming(&out, "depth8.png", "16-bit");
     // Depth of another size than the colour image and the camera.
     let small = Gray16Image::from_vec(160, 120, vec![600; 160 * 120]).unwrap();
-    imageio::write_gray16(&scene.path("small.png"), &small).unwrap();
+    riseg::io::image::write_gray16(&scene.path("small.png"), &small).unwrap();
     let out = scene.run("rgb.png", "small.png");
     scene.assert_fails_naming(&out, "small.png", "320x240");
     // Colour that is a depth image.

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 
-use riseg::eval::{self, EvalError, EvalReport};
-use riseg::scene::{POSES_FILE, Scene};
+use riseg::cli::eval::{self, EvalError, EvalReport};
+use riseg::io::scene::{POSES_FILE, Scene};
 
 const W: u32 = 24;
 const H: u32 = 16;
@@ -398,7 +398,7 @@ fn a_generated_dataset_has_a_ceiling_from_its_own_poses_and_none_without_them() 
     let e = eval::evaluate_ceiling(
         core::slice::from_ref(&scene),
         &mut segmenter,
-        &riseg::ceiling::CeilingParams::DEFAULT,
+        &riseg::eval::ceiling::CeilingParams::DEFAULT,
         || {},
     )
     .unwrap_err()
@@ -466,7 +466,7 @@ fn with_poses_eval_scores_the_motion_ceiling_beside_the_pushes() {
     let alike = eval::evaluate_ceiling(
         &poses,
         &mut segmenter,
-        &riseg::ceiling::CeilingParams::DEFAULT,
+        &riseg::eval::ceiling::CeilingParams::DEFAULT,
         || frames += 1,
     )
     .unwrap();

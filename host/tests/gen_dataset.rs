@@ -16,9 +16,9 @@ use std::{
 };
 
 use riseg::{
-    generate::{GeneratedScene, generate_scene, scene_dir_name, scene_seed, write_dataset},
-    imageio::{FlowImage, Gray16Image, RgbImage},
-    scene::{ObjectPose, Scene, list_scenes},
+    cli::generate::{GeneratedScene, generate_scene, scene_dir_name, scene_seed, write_dataset},
+    io::image::{FlowImage, Gray16Image, RgbImage},
+    io::scene::{ObjectPose, Scene, list_scenes},
     sim::{Layout, TABLE_HALF_EXTENTS_M},
 };
 

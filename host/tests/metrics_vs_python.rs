@@ -9,7 +9,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use riseg::metrics::{ImageMetrics, image_metrics};
+use riseg::eval::metrics::{ImageMetrics, image_metrics};
 use serde_json::Value;
 
 const CASES: usize = 240;

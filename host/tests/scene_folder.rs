@@ -13,9 +13,9 @@ use std::{
 
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use riseg::{
-    camera::SceneReplay,
-    imageio::{FlowImage, Gray16Image, RgbImage, write_gray16},
-    scene::{ObjectPose, PushAction, Scene, SceneCamera, SceneError, list_scenes},
+    io::image::{FlowImage, Gray16Image, RgbImage, write_gray16},
+    io::scene::{ObjectPose, PushAction, Scene, SceneCamera, SceneError, list_scenes},
+    rig::camera::SceneReplay,
 };
 use riseg_core::Pose;
 

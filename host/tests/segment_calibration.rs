@@ -32,7 +32,7 @@ use riseg::segment::{
     ClassicalSegmenter, HEAT_CERTAIN, HEAT_UNCERTAIN, RgbdFrame, SegmenterParams,
 };
 use riseg::sim::{SimScene, TOUCH_GAP_M};
-use riseg::workspace::ActionBuf;
+use riseg_core::owned::ActionBuf;
 use riseg_core::{Config, ImageView, action::find_action};
 
 /// Scene seeds `FIRST_SEED..FIRST_SEED + SCENES`; `RISEG_CALIB_FIRST_SEED` moves the window
@@ -141,6 +141,7 @@ fn run_scene(seed: u64) -> SceneResult {
     let report = find_action(
         &ImageView::packed(w, h, heat).expect("heatmap view"),
         &ImageView::packed(w, h, depth_m).expect("depth view"),
+        &ImageView::packed(w, h, pred).expect("mask view"),
         &frame.intrinsics,
         &cfg,
         scratch.view(),

@@ -14,10 +14,7 @@ use std::{
     path::{Path, PathBuf},
 };
 
-use riseg::{
-    imageio,
-    segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams},
-};
+use riseg::segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams};
 use riseg_core::Intrinsics;
 
 fn data_root() -> Option<PathBuf> {
@@ -44,8 +41,8 @@ fn data_root() -> Option<PathBuf> {
 
 /// Segments one frame and returns what is wrong with it, if anything.
 fn check_frame(name: &str, rgb: &Path, depth: &Path, k: &Intrinsics) -> Option<String> {
-    let rgb = imageio::read_rgb8(rgb).expect("colour PNG");
-    let depth = imageio::read_gray16(depth).expect("depth PNG");
+    let rgb = riseg::io::image::read_rgb8(rgb).expect("colour PNG");
+    let depth = riseg::io::image::read_gray16(depth).expect("depth PNG");
     assert_eq!(
         (rgb.width(), rgb.height()),
         (depth.width(), depth.height()),

@@ -1,7 +1,10 @@
 //! A simulated dataset from `riseg gen`, scored against itself by `riseg eval`'s library
 //! code: every number must be 100, on every push index.
 
-use riseg::{eval, generate::write_dataset, sim::Layout};
+use riseg::{
+    cli::{eval, generate::write_dataset},
+    sim::Layout,
+};
 
 #[test]
 fn generated_dataset_against_itself_scores_100_everywhere() {

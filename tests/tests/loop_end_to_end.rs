@@ -3,17 +3,17 @@
 //! limits is refused before anything moves.
 
 use riseg::{
-    bench::{BenchConfig, run_bench, run_scene as bench_scene},
-    camera::Camera as _,
-    episode::{Stop, run_episode},
-    eval,
+    cli::bench::{BenchConfig, run_bench, run_scene as bench_scene},
+    cli::eval,
+    cli::generate::generate_scene,
+    cli::run::{InputDirs, replay_scene, run_scene},
     flow::{DisFlow, FlowParams},
-    generate::generate_scene,
-    replay::{InputDirs, replay_scene, run_scene},
-    robot::{PushLimits, PushRefused, Robot as _},
+    rig::camera::Camera as _,
+    rig::episode::{Stop, run_episode},
+    rig::robot::{PushLimits, PushRefused, Robot as _},
+    rig::tracker::Tracker,
     segment::{ClassicalSegmenter, SegmenterParams},
     sim::{Layout, SimRig, SimScene},
-    tracker::Tracker,
 };
 use riseg_core::Config;
 

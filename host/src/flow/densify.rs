@@ -9,7 +9,7 @@
 use super::pool::Pool;
 use super::pyramid::{Padded, Tap};
 use super::search::{Grid, PatchFlow, Template};
-use rayon::prelude::*;
+use crate::par::*;
 
 /// Dense `w x h` flow from the patch flows of one level (`patches` row-major over the
 /// grid, which covers every pixel).

@@ -23,9 +23,12 @@
 //!
 //! # Examples
 //! ```
-//! use riseg::flow::{DisFlow, FlowParams, GrayF32, testdata};
+//! use riseg::{
+//!     flow::{DisFlow, FlowParams},
+//!     testkit::flow::translated,
+//! };
 //!
-//! let pair = testdata::translated(160, 120, 7, [1.5, -0.75]);
+//! let pair = translated(160, 120, 7, [1.5, -0.75]);
 //! let (a, b) = (pair.first_gray(), pair.second_gray());
 //! let flow = DisFlow::new(FlowParams::MEDIUM)?.estimate_gray(&a, &b)?;
 //! let epe = flow.mean_epe(&pair.flow, Some(&pair.interior))?;
@@ -108,7 +111,7 @@ impl FlowParams {
     ///
     /// Few Gauss-Newton steps per patch: with spatial propagation and the coarser level's
     /// refined flow as starting points, more steps mostly let patches that straddle a
-    /// motion boundary slide to the other motion (measured on `testdata` scenes).
+    /// motion boundary slide to the other motion (measured on `testkit::flow` scenes).
     pub const FAST: Self = Self {
         finest_level: 1,
         gd_iters: 4,
@@ -188,6 +191,7 @@ const PAD: usize = 16;
 #[derive(Debug, Clone)]
 pub struct DisFlow {
     params: FlowParams,
+    #[cfg(feature = "threads")]
     pool: Option<Arc<rayon::ThreadPool>>,
     /// Buffers kept between calls (shared by clones).
     buffers: Arc<Pool>,
@@ -203,6 +207,7 @@ impl DisFlow {
         params.validate()?;
         Ok(Self {
             params,
+            #[cfg(feature = "threads")]
             pool: None,
             buffers: Arc::default(),
             flows: Arc::default(),
@@ -210,9 +215,11 @@ impl DisFlow {
     }
 
     /// The same estimator on its own pool of `threads` threads (`0`: rayon's global pool).
+    /// Only with the `threads` feature; without it the estimator runs on the calling thread.
     ///
     /// # Errors
     /// [`FlowError::ThreadPool`] if the operating system refuses the threads.
+    #[cfg(feature = "threads")]
     pub fn with_threads(mut self, threads: usize) -> Result<Self, FlowError> {
         self.pool = if threads == 0 {
             None
@@ -251,10 +258,11 @@ impl DisFlow {
         if !first.data.iter().chain(&second.data).all(|v| v.is_finite()) {
             return Err(FlowError::NonFinite);
         }
-        Ok(match &self.pool {
-            Some(pool) => pool.install(|| self.run(first, second)),
-            None => self.run(first, second),
-        })
+        #[cfg(feature = "threads")]
+        if let Some(pool) = &self.pool {
+            return Ok(pool.install(|| self.run(first, second)));
+        }
+        Ok(self.run(first, second))
     }
 
     /// Levels `(finest, coarsest)` for a `w x h` image (at least one patch fits at both).
@@ -267,7 +275,7 @@ impl DisFlow {
         let auto = {
             // A patch covers about a quarter of the longer side at the coarsest level.
             let ratio = w.max(h) as f32 / (4 * p) as f32;
-            ratio.log2().round().max(0.0) as usize
+            libm::log2f(ratio).round().max(0.0) as usize
         };
         let finest = self.params.finest_level.min(max_level);
         let coarsest = self
@@ -430,7 +438,7 @@ impl FlowEstimator for DisFlow {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::flow::testdata::{self, Scene};
+    use crate::testkit::flow::FlowScene;
 
     fn medium() -> DisFlow {
         DisFlow::new(FlowParams::MEDIUM).unwrap()
@@ -439,7 +447,7 @@ mod tests {
     #[test]
     fn subpixel_translation_is_recovered_on_the_interior() {
         for (seed, shift) in [(1, [2.3, -1.6]), (2, [-5.7, 3.25]), (3, [0.4, 0.45])] {
-            let p = testdata::translated(640, 480, seed, shift);
+            let p = crate::testkit::flow::translated(640, 480, seed, shift);
             let f = medium().estimate(p.first_view(), p.second_view()).unwrap();
             let epe = f.mean_epe(&p.flow, Some(&p.interior)).unwrap();
             eprintln!("shift {shift:?}: interior EPE {epe:.4} px");
@@ -450,7 +458,7 @@ mod tests {
     #[test]
     fn three_degree_rotation_is_recovered_on_the_interior() {
         for angle in [3f32, -3.0] {
-            let p = testdata::rotated(640, 480, 4, angle.to_radians());
+            let p = crate::testkit::flow::rotated(640, 480, 4, angle.to_radians());
             let f = medium().estimate(p.first_view(), p.second_view()).unwrap();
             let epe = f.mean_epe(&p.flow, Some(&p.interior)).unwrap();
             eprintln!("{angle} degrees: interior EPE {epe:.4} px");
@@ -460,7 +468,7 @@ mod tests {
 
     #[test]
     fn zero_motion_gives_zero_flow() {
-        let p = testdata::translated(320, 240, 5, [0.0, 0.0]);
+        let p = crate::testkit::flow::translated(320, 240, 5, [0.0, 0.0]);
         for params in [
             FlowParams::ULTRAFAST,
             FlowParams::FAST,
@@ -474,7 +482,7 @@ mod tests {
             let max = f
                 .as_slice()
                 .iter()
-                .map(|v| v[0].hypot(v[1]))
+                .map(|v| libm::hypotf(v[0], v[1]))
                 .fold(0.0f32, f32::max);
             eprintln!("zero motion: max |flow| {max:e} px");
             assert!(max < 0.05, "{params:?}: max |flow| {max}");
@@ -483,16 +491,17 @@ mod tests {
 
     #[test]
     fn rigid_objects_are_tracked() {
-        let p = Scene::random_objects(640, 480, 11).render();
+        let p = FlowScene::random_objects(640, 480, 11).render();
         let f = medium().estimate(p.first_view(), p.second_view()).unwrap();
         let epe = f.mean_epe(&p.flow, Some(&p.interior)).unwrap();
         eprintln!("rigid objects: interior EPE {epe:.4} px");
         assert!(epe < 0.5, "EPE {epe}");
     }
 
+    #[cfg(feature = "threads")]
     #[test]
     fn thread_count_does_not_change_the_result() {
-        let p = Scene::random_objects(320, 240, 3).render();
+        let p = FlowScene::random_objects(320, 240, 3).render();
         let one = medium().with_threads(1).unwrap();
         let three = medium().with_threads(3).unwrap();
         let a = one.estimate(p.first_view(), p.second_view()).unwrap();

@@ -18,13 +18,12 @@
 //!   crosses tasks).
 //!
 //! # Modules
-//! [`dis`] holds the estimator and its presets; [`testdata`] makes image pairs with exact
+//! [`dis`] holds the estimator and its presets; [`crate::testkit::flow`] (test support) makes image pairs with exact
 //! ground truth; [`viz`] draws a flow with the Middlebury colour wheel; [`flo`] is the
 //! `.flo` file format.
 
 pub mod dis;
 pub mod flo;
-pub mod testdata;
 pub mod viz;
 
 mod densify;
@@ -35,7 +34,7 @@ mod variational;
 
 pub use dis::{DisFlow, FlowParams};
 
-use crate::imageio::FlowImage;
+use crate::io::image::FlowImage;
 
 /// Why a flow call failed.
 #[derive(Debug, thiserror::Error)]
@@ -96,6 +95,7 @@ pub enum FlowError {
     #[error("the mask selects no pixel")]
     EmptySelection,
     /// The dedicated thread pool could not be built.
+    #[cfg(feature = "threads")]
     #[error("cannot build the flow thread pool")]
     ThreadPool(#[from] rayon::ThreadPoolBuildError),
 }
@@ -135,9 +135,9 @@ fn check_len(width: usize, height: usize, per_pixel: usize, len: usize) -> Resul
 /// `image::RgbImage::as_raw` and of a decoded 8-bit RGB PNG.
 #[derive(Debug, Clone, Copy)]
 pub struct RgbView<'a> {
-    width: usize,
-    height: usize,
-    data: &'a [u8],
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) data: &'a [u8],
 }
 
 impl<'a> RgbView<'a> {
@@ -233,9 +233,9 @@ impl GrayF32 {
 /// A dense flow field: `[dx, dy]` pixels per pixel of the first image, row-major.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Flow {
-    width: usize,
-    height: usize,
-    data: Vec<[f32; 2]>,
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) data: Vec<[f32; 2]>,
 }
 
 impl Flow {
@@ -252,7 +252,7 @@ impl Flow {
         })
     }
 
-    /// The flow of a Middlebury `.flo` file ([`crate::imageio::read_flo`]) with every
+    /// The flow of a Middlebury `.flo` file ([`crate::io::image::read_flo`]) with every
     /// unknown vector ([`is_known_flow`]) replaced by `[NaN, NaN]`, the in-memory mark.
     #[must_use]
     pub fn from_middlebury(image: FlowImage) -> Self {
@@ -326,7 +326,7 @@ impl Flow {
         let mut count = 0usize;
         for (i, (a, b)) in self.data.iter().zip(&truth.data).enumerate() {
             if is_known_flow(*b) && mask.is_none_or(|m| m[i]) {
-                sum += f64::from((a[0] - b[0]).hypot(a[1] - b[1]));
+                sum += f64::from(libm::hypotf(a[0] - b[0], a[1] - b[1]));
                 count += 1;
             }
         }

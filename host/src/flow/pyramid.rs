@@ -7,7 +7,7 @@
 //! scale by exactly 2 between levels.
 
 use super::pool::Pool;
-use rayon::prelude::*;
+use crate::par::*;
 
 /// A plain row-major `f32` plane.
 #[derive(Debug, Clone)]

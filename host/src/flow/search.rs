@@ -15,7 +15,7 @@
 //! tasks and each line in order, so the result does not depend on the thread count.
 
 use super::pyramid::Padded;
-use rayon::prelude::*;
+use crate::par::*;
 
 /// Top-left corners of patches of side `size` every `stride` pixels along a side of
 /// `len >= size` pixels; the last patch is moved in so that it ends at the border.

@@ -21,7 +21,7 @@
 //! the same row and slot `k + 1` of the rows above and below.
 
 use super::pool::Pool;
-use rayon::prelude::*;
+use crate::par::*;
 
 /// Settings of the refinement.
 #[derive(Debug, Clone, Copy)]
@@ -135,7 +135,7 @@ impl Planes {
     }
 
     /// The chunks of image rows `0..h` (guard rows excluded), in parallel.
-    fn rows_mut(&mut self, h: usize) -> rayon::slice::ChunksMut<'_, f32> {
+    fn rows_mut(&mut self, h: usize) -> crate::par::ChunksMut<'_, f32> {
         let c = self.n * self.ps;
         self.data[c..(h + 1) * c].par_chunks_mut(c)
     }

@@ -39,7 +39,7 @@ fn wheel() -> [[f32; 3]; NCOLS] {
 pub fn max_magnitude(flow: &Flow) -> f32 {
     flow.as_slice()
         .iter()
-        .map(|v| v[0].hypot(v[1]))
+        .map(|v| libm::hypotf(v[0], v[1]))
         .filter(|m| m.is_finite())
         .fold(0.0, f32::max)
 }
@@ -62,8 +62,8 @@ pub fn flow_to_rgb(flow: &Flow, max_magnitude_px: Option<f32>) -> Vec<u8> {
             out.extend_from_slice(&[0, 0, 0]);
             continue;
         }
-        let rad = v[0].hypot(v[1]) * inv;
-        let a = (-v[1]).atan2(-v[0]) / core::f32::consts::PI;
+        let rad = libm::hypotf(v[0], v[1]) * inv;
+        let a = libm::atan2f(-v[1], -v[0]) / core::f32::consts::PI;
         let fk = (a + 1.0) / 2.0 * (NCOLS - 1) as f32;
         let k0 = (fk.floor() as usize).min(NCOLS - 1);
         let k1 = (k0 + 1) % NCOLS;

@@ -224,7 +224,7 @@ impl StaticSegmenter for ClassicalSegmenter {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::segment::synthetic::SyntheticTabletop;
+    use crate::testkit::segment::SyntheticTabletop;
 
     #[test]
     fn same_frame_and_seed_give_the_same_output() {

@@ -273,8 +273,8 @@ pub(super) fn creases(inp: &CreaseInput<'_>, params: &SegmenterParams, out: &mut
     } = *inp;
     let r = params.crease_radius_px;
     let reach = r + params.normal_radius_px + params.smooth_radius_px;
-    let cos_soft = params.crease_soft_deg.to_radians().cos();
-    let cos_block = params.crease_block_deg.to_radians().cos();
+    let cos_soft = libm::cosf(params.crease_soft_deg.to_radians());
+    let cos_block = libm::cosf(params.crease_block_deg.to_radians());
     out.fill(0);
     if w <= 2 * reach && h <= 2 * reach {
         return;

@@ -116,7 +116,7 @@ pub(super) fn grow_segments(
 ) -> Result<usize, SegmentError> {
     let (w, h) = (inp.w, inp.h);
     let n = w * h;
-    let cos_normal = params.grow_normal_deg.to_radians().cos();
+    let cos_normal = libm::cosf(params.grow_normal_deg.to_radians());
     let blocked = |i: usize| inp.crease[i] & CREASE_BLOCK != 0;
 
     // 1. Union-find over the grown (non-crease) object pixels.

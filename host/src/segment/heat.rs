@@ -447,7 +447,7 @@ fn necks(inp: &HeatInput<'_>, params: &SegmenterParams, notch: &mut Vec<u32>, ma
             if qq.1 - pp.1 > max_px {
                 break;
             }
-            let d = (qq.0 - pp.0).hypot(qq.1 - pp.1);
+            let d = libm::hypotf(qq.0 - pp.0, qq.1 - pp.1);
             if labels[q] != a || d > max_px || d < min_px || best.is_some_and(|(b, _)| b <= d) {
                 continue;
             }

@@ -26,7 +26,6 @@ mod grow;
 mod heat;
 mod params;
 mod plane;
-pub mod synthetic;
 pub mod viz;
 
 use riseg_core::Intrinsics;
@@ -36,13 +35,15 @@ pub use params::SegmenterParams;
 pub use plane::TablePlane;
 
 /// Union-find over `u32` indices (roots are the smallest index), shared with
-/// [`crate::ceiling`].
+/// [`crate::eval::ceiling`].
 pub(crate) use grow::{find as union_find_root, union as union_find_join};
 
-/// Heatmap values at or above this are "certain" object pixels (the paper's `l_u`).
-pub const HEAT_CERTAIN: u8 = 150;
-/// Heatmap values in `HEAT_UNCERTAIN..HEAT_CERTAIN` are "uncertain" (the paper's `l_l`).
-pub const HEAT_UNCERTAIN: u8 = 120;
+/// Heatmap values at or above this are "certain" object pixels (the paper's `l_u`): the
+/// heatmap is calibrated to FindAction's [`riseg_core::Config::certain_from`].
+pub const HEAT_CERTAIN: u8 = riseg_core::Config::PAPER.certain_from;
+/// Heatmap values in `HEAT_UNCERTAIN..HEAT_CERTAIN` are "uncertain" (the paper's `l_l`,
+/// [`riseg_core::Config::uncertain_from`]).
+pub const HEAT_UNCERTAIN: u8 = riseg_core::Config::PAPER.uncertain_from;
 
 /// Why a segmenter could not segment a frame.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -173,7 +173,7 @@ pub(super) fn fit_table(
             .map(|i| i as u32),
     );
     let needed = ((params.min_table_share * s.cand.len() as f32).ceil() as usize).max(3);
-    let cos_normal = params.plane_normal_deg.to_radians().cos();
+    let cos_normal = libm::cosf(params.plane_normal_deg.to_radians());
     let mut rng = Pcg32::new(params.seed);
 
     s.allowed.clone_from(&s.cand);
@@ -403,8 +403,8 @@ fn ransac(
     rng: &mut Pcg32,
     s: &mut PlaneScratch,
 ) -> (TablePlane, usize) {
-    let cos_normal = params.plane_normal_deg.to_radians().cos();
-    let cos_parallel = PARALLEL_DEG.to_radians().cos();
+    let cos_normal = libm::cosf(params.plane_normal_deg.to_radians());
+    let cos_parallel = libm::cosf(PARALLEL_DEG.to_radians());
     let fallback = TablePlane {
         normal: Vector3::new(0.0, 0.0, -1.0),
         offset_m: 1.0,

@@ -4,7 +4,7 @@ use nalgebra::Point3;
 use riseg_core::{Intrinsics, Pose};
 
 use super::{ObjectPose, SimError};
-use crate::imageio::{DepthImage, FlowImage, Gray16Image, Image};
+use crate::io::image::{DepthImage, FlowImage, Gray16Image, Image};
 
 /// Flow value stored where a moved point falls behind the camera (Middlebury's
 /// "unknown" convention: any component above 1e9). It does not occur on a tabletop.

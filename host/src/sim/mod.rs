@@ -9,7 +9,7 @@
 //! (mixed shapes touching, the default), `Packed` (look-alike boxes or cans flush in a grid,
 //! the regime where a static segmenter merges everything) and `Mixed` (a pack with loose
 //! objects against it). Every family uses the same camera, renderer and sensor noise; the
-//! family also picks the scripted pushes of [`SimScene::plan_push`].
+//! family also picks the scripted pushes of [`SimScene::scripted_push`].
 //!
 //! # Frames
 //! - **world** (= table = robot base): origin at the centre of the table top, z up. Pushes
@@ -23,8 +23,8 @@
 //!   is fixed in this frame, so it moves with the object.
 //!
 //! # Ground truth
-//! [`RgbdFrame::labels`] holds instance ids (`0` = table/background, objects `1..=n`) and
-//! [`RgbdFrame::true_depth_m`] the exact depth, both per ray. [`ground_truth_flow`] turns
+//! [`SimFrame::labels`] holds instance ids (`0` = table/background, objects `1..=n`) and
+//! [`SimFrame::true_depth_m`] the exact depth, both per ray. [`ground_truth_flow`] turns
 //! two pose sets into the exact forward flow.
 //!
 //! # Units
@@ -40,10 +40,10 @@
 //! camera would.
 
 mod convert;
+mod devices;
 mod flow;
 mod layout;
 mod render;
-mod rig;
 mod shear;
 
 use core::fmt;
@@ -55,14 +55,17 @@ use rapier3d::prelude::{
 };
 use riseg_core::{Intrinsics, Pose, rng::Pcg32};
 
-/// Where one object is: its label (as in [`RgbdFrame::labels`]) and body frame in the world
+/// Where one object is: its label (as in [`SimFrame::labels`]) and body frame in the world
 /// frame. Defined with the scene folder format, which stores it (`poses.json`).
-pub use crate::scene::ObjectPose;
+pub use crate::io::scene::ObjectPose;
+pub use devices::{ARM_MAX_PUSH_LEN_M, ARM_MAX_TOOL_HEIGHT_M, SimCamera, SimRig, SimRobot};
 pub use flow::{UNKNOWN_FLOW, ground_truth_flow};
 pub use layout::{Layout, ObjectShape};
-pub use rig::{SIM_MAX_PUSH_LEN_M, SIM_MAX_TOOL_HEIGHT_M, SimCamera, SimRig, SimRobot};
 
-use crate::imageio::{DepthImage, Gray16Image, RgbImage};
+use crate::{
+    io::image::{DepthImage, Gray16Image, RgbImage},
+    rig::robot::PushCommand,
+};
 use convert::{
     CM_PER_M, dir_from_sim, dir_to_sim, point_from_sim, point_to_sim, pose_from_sim, pose_to_sim,
 };
@@ -74,10 +77,13 @@ pub const TABLE_HALF_EXTENTS_M: [f32; 2] = [0.6, 0.6];
 const TABLE_THICKNESS_M: f32 = 0.04;
 /// Two objects closer than this count as touching, metres.
 pub const TOUCH_GAP_M: f32 = 0.002;
-/// Default push length (the paper's `d_push`), metres.
-pub const DEFAULT_PUSH_LEN_M: f32 = 0.02;
-/// Pushes longer than this are refused, metres.
-pub const MAX_PUSH_LEN_M: f32 = 0.3;
+/// Length of the scripted pushes of `riseg gen`: FindAction's push length (the paper's
+/// `d_push`, [`riseg_core::Config::push_len_m`]), metres.
+pub const DEFAULT_PUSH_LEN_M: f32 = riseg_core::Config::PAPER.push_len_m;
+/// Longest travel [`SimScene::push`] moves the pusher ball, metres: a sanity bound of the
+/// physics, not of the arm (the simulated arm refuses pushes longer than
+/// [`ARM_MAX_PUSH_LEN_M`]).
+pub const PUSHER_MAX_TRAVEL_M: f32 = 0.3;
 
 /// Everything the simulator can be asked to vary, with a D415-like preset.
 ///
@@ -260,22 +266,19 @@ pub struct ObjectBounds {
     pub max_m: Point3<f32>,
 }
 
-/// A straight-line push of the pusher's centre, world frame.
+/// A scripted push of `riseg gen` ([`SimScene::scripted_push`]): the command, in the world
+/// frame (the simulated robot's frame), and the object it aims at.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Push {
-    /// Pusher centre at the start, metres.
-    pub start_world: Point3<f32>,
-    /// Unit direction.
-    pub direction_world: Vector3<f32>,
-    /// Distance travelled, metres.
-    pub length_m: f32,
+pub struct ScriptedPush {
+    /// The pusher's straight motion, world frame.
+    pub command: PushCommand,
     /// Label of the object the push aims at.
     pub target: u16,
 }
 
 /// One RGB-D frame with its ground truth.
 #[derive(Debug, Clone, PartialEq)]
-pub struct RgbdFrame {
+pub struct SimFrame {
     /// Colour, with sensor noise.
     pub rgb: RgbImage,
     /// Depth in metres with sensor noise; `0.0` = no reading (depth edges, nothing hit).
@@ -531,7 +534,7 @@ impl SimScene {
     }
 
     /// Renders the scene as the camera sees it now, with fresh sensor noise.
-    pub fn render(&mut self) -> RgbdFrame {
+    pub fn render(&mut self) -> SimFrame {
         let table = self.world.colliders.get(self.table);
         let mut surfaces: Vec<Surface<'_>> = Vec::with_capacity(self.objects.len() + 1);
         if let Some(t) = table {
@@ -571,7 +574,7 @@ impl SimScene {
         let noise_seed = mix64(self.seed ^ mix64(0xF8A3E ^ self.frames_rendered));
         self.frames_rendered += 1;
         let r = render::render(&surfaces, &sensor, noise_seed);
-        RgbdFrame {
+        SimFrame {
             rgb: r.rgb,
             depth_m: r.depth_m,
             labels: r.labels,
@@ -608,21 +611,18 @@ impl SimScene {
     }
 
     /// Pushes: a small ball (radius [`SimConfig::pusher_radius_m`]) appears with its centre
-    /// at `start_world`, moves `length_m` along `direction_world` at
+    /// at the command's start (world frame), moves its length along its direction at
     /// [`SimConfig::push_speed_m_per_s`] through the physics, lifts off and disappears;
     /// then the objects settle.
     ///
     /// # Errors
     /// [`SimError::BadPush`] (nothing moves) if a value is not finite, the direction is
-    /// zero, the length is not in `(0, MAX_PUSH_LEN_M]`, or the start is below the table
+    /// zero, the length is not in `(0, PUSHER_MAX_TRAVEL_M]`, or the start is below the table
     /// top by more than the pusher radius allows.
-    pub fn push(
-        &mut self,
-        start_world: Point3<f32>,
-        direction_world: Vector3<f32>,
-        length_m: f32,
-    ) -> Result<(), SimError> {
-        let finite = start_world
+    pub fn push(&mut self, cmd: &PushCommand) -> Result<(), SimError> {
+        let (start_world_m, direction_world, length_m) =
+            (cmd.start_robot_m, cmd.direction_robot, cmd.length_m);
+        let finite = start_world_m
             .iter()
             .chain(direction_world.iter())
             .all(|v| v.is_finite());
@@ -632,19 +632,19 @@ impl SimScene {
         let Some(dir) = direction_world.try_normalize(1e-6) else {
             return Err(SimError::BadPush("the direction is zero".into()));
         };
-        if !(length_m > 0.0 && length_m <= MAX_PUSH_LEN_M) {
+        if !(length_m > 0.0 && length_m <= PUSHER_MAX_TRAVEL_M) {
             return Err(SimError::BadPush(format!(
-                "length {length_m} m is not in (0, {MAX_PUSH_LEN_M}]"
+                "length {length_m} m is not in (0, {PUSHER_MAX_TRAVEL_M}]"
             )));
         }
         let r_m = self.config.pusher_radius_m;
-        if start_world.z < r_m - 1e-4 || start_world.z + dir.z * length_m < r_m - 1e-4 {
+        if start_world_m.z < r_m - 1e-4 || start_world_m.z + dir.z * length_m < r_m - 1e-4 {
             return Err(SimError::BadPush(format!(
                 "the pusher (radius {r_m} m) would go into the table"
             )));
         }
         let dt = self.config.physics_dt_s;
-        let start = point_to_sim(&start_world);
+        let start = point_to_sim(&start_world_m);
         let dir = dir_to_sim(&dir);
         // Sleeping bodies would ignore the pusher's first contact.
         self.world.wake_up_all(true);
@@ -688,7 +688,7 @@ impl SimScene {
     ///   transitively, every object a carried one would run into by more than 1 mm if it
     ///   moved rigidly along the push) are not all of them and touch one that stays. Part of
     ///   the objects slides along a face it shares with the rest, which stays.
-    pub fn plan_push(&mut self, length_m: f32) -> Option<Push> {
+    pub fn scripted_push(&mut self, length_m: f32) -> Option<ScriptedPush> {
         let candidates = match self.config.layout {
             Layout::Loose => self.across_pushes(length_m),
             Layout::Packed | Layout::Mixed => self.shear_pushes(length_m),
@@ -697,8 +697,8 @@ impl SimScene {
         candidates.get(self.rng.below(n) as usize).copied()
     }
 
-    /// The loose family's candidates: see [`SimScene::plan_push`].
-    fn across_pushes(&self, length_m: f32) -> Vec<Push> {
+    /// The loose family's candidates: see [`SimScene::scripted_push`].
+    fn across_pushes(&self, length_m: f32) -> Vec<ScriptedPush> {
         let mut candidates = Vec::new();
         for (a, b) in self.touching_pairs(TOUCH_GAP_M) {
             for (pushed, other) in [(a, b), (b, a)] {
@@ -715,14 +715,22 @@ impl SimScene {
         self.world.colliders.get(o.collider)
     }
 
-    fn push_across(&self, pushed: u16, other: u16, sign: f32, length_m: f32) -> Option<Push> {
+    fn push_across(
+        &self,
+        pushed: u16,
+        other: u16,
+        sign: f32,
+        length_m: f32,
+    ) -> Option<ScriptedPush> {
         let (c_pushed, c_other) = (self.collider_of(pushed)?, self.collider_of(other)?);
         let dir = across(c_pushed, c_other)? * sign;
         let start = self.push_start(c_pushed, dir)?;
-        Some(Push {
-            start_world: point_from_sim(start),
-            direction_world: dir_from_sim(dir),
-            length_m,
+        Some(ScriptedPush {
+            command: PushCommand {
+                start_robot_m: point_from_sim(start),
+                direction_robot: dir_from_sim(dir),
+                length_m,
+            },
             target: pushed,
         })
     }
@@ -833,11 +841,13 @@ mod tests {
     fn a_planned_push_moves_its_target_about_the_push_length() {
         let mut sim = SimScene::new(3).unwrap();
         let before = sim.object_poses();
-        let push = sim.plan_push(DEFAULT_PUSH_LEN_M).unwrap();
-        assert!((push.direction_world.norm() - 1.0).abs() < 1e-5);
-        assert!(push.direction_world.z.abs() < 1e-6, "pushes are horizontal");
-        sim.push(push.start_world, push.direction_world, push.length_m)
-            .unwrap();
+        let push = sim.scripted_push(DEFAULT_PUSH_LEN_M).unwrap();
+        assert!((push.command.direction_robot.norm() - 1.0).abs() < 1e-5);
+        assert!(
+            push.command.direction_robot.z.abs() < 1e-6,
+            "pushes are horizontal"
+        );
+        sim.push(&push.command).unwrap();
         let after = sim.object_poses();
         let moved = |label: u16| {
             let p = |poses: &[ObjectPose]| {
@@ -849,7 +859,7 @@ mod tests {
                     .translation
                     .vector
             };
-            (p(&after) - p(&before)).dot(&push.direction_world)
+            (p(&after) - p(&before)).dot(&push.command.direction_robot)
         };
         let target_m = moved(push.target);
         // The pusher starts 2 mm from the surface; the object may slide a little further.
@@ -873,7 +883,13 @@ mod tests {
             (Point3::new(0.3, 0.3, 0.0), x, 0.02),
             (start, -Vector3::z(), 0.02),
         ] {
-            let e = sim.push(s, d, len).unwrap_err();
+            let e = sim
+                .push(&PushCommand {
+                    start_robot_m: s,
+                    direction_robot: d,
+                    length_m: len,
+                })
+                .unwrap_err();
             assert!(matches!(e, SimError::BadPush(_)), "{e}");
         }
         assert_eq!(sim.object_poses(), before);

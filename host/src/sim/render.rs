@@ -25,7 +25,7 @@ use rayon::prelude::*;
 use riseg_core::{Intrinsics, rng::Pcg32};
 
 use super::convert::CM_PER_M;
-use crate::imageio::{DepthImage, Gray16Image, Image, RgbImage};
+use crate::io::image::{DepthImage, Gray16Image, Image, RgbImage};
 
 /// A surface the renderer can hit: the table or one object.
 pub(crate) struct Surface<'a> {

@@ -19,8 +19,11 @@
 use parry3d::math::Vector as GlamVec;
 use rapier3d::prelude::Collider;
 
+use crate::rig::robot::PushCommand;
+
 use super::{
-    CM_PER_M, ObjectShape, Push, SimScene, TOUCH_GAP_M, across, dir_from_sim, point_from_sim,
+    CM_PER_M, ObjectShape, ScriptedPush, SimScene, TOUCH_GAP_M, across, dir_from_sim,
+    point_from_sim,
 };
 
 /// A carried object penetrates the next by more than this before it counts as pushing it,
@@ -31,7 +34,7 @@ const CARRY_SAMPLES: [f32; 4] = [0.25, 0.5, 0.75, 1.0];
 
 impl SimScene {
     /// Every qualifying shear push of `length_m` (module docs), in label order.
-    pub(super) fn shear_pushes(&self, length_m: f32) -> Vec<Push> {
+    pub(super) fn shear_pushes(&self, length_m: f32) -> Vec<ScriptedPush> {
         let touching = self.touching_pairs(TOUCH_GAP_M);
         let mut candidates = Vec::new();
         for o in &self.objects {
@@ -49,10 +52,12 @@ impl SimScene {
                         .iter()
                         .any(|(a, b)| carried.contains(a) != carried.contains(b));
                 if shears {
-                    candidates.push(Push {
-                        start_world: point_from_sim(start),
-                        direction_world: dir_from_sim(dir),
-                        length_m,
+                    candidates.push(ScriptedPush {
+                        command: PushCommand {
+                            start_robot_m: point_from_sim(start),
+                            direction_robot: dir_from_sim(dir),
+                            length_m,
+                        },
                         target: label,
                     });
                 }
@@ -138,20 +143,22 @@ mod tests {
             let mut sim = SimScene::with_config(seed, config).unwrap();
             let before = sim.object_poses();
             let push = sim
-                .plan_push(DEFAULT_PUSH_LEN_M)
+                .scripted_push(DEFAULT_PUSH_LEN_M)
                 .unwrap_or_else(|| panic!("seed {seed}: no shear push"));
-            assert!(push.direction_world.z.abs() < 1e-6, "pushes are horizontal");
+            assert!(
+                push.command.direction_robot.z.abs() < 1e-6,
+                "pushes are horizontal"
+            );
             let mut predicted = sim.carried(
                 push.target,
-                dir_to_sim(&push.direction_world) * (push.length_m * CM_PER_M),
+                dir_to_sim(&push.command.direction_robot) * (push.command.length_m * CM_PER_M),
             );
             predicted.sort_unstable();
-            sim.push(push.start_world, push.direction_world, push.length_m)
-                .unwrap();
+            sim.push(&push.command).unwrap();
             let after = sim.object_poses();
             let along = |b: &ObjectPose, a: &ObjectPose| {
                 (a.world_from_object.translation.vector - b.world_from_object.translation.vector)
-                    .dot(&push.direction_world)
+                    .dot(&push.command.direction_robot)
             };
             let moved_m: Vec<(u16, f32)> = before
                 .iter()

@@ -45,7 +45,7 @@
 //! # Poses
 //!
 //! A scene folder records the true poses in `poses.json` (format and rules in
-//! [`crate::scene`]; read into [`Scene::poses`](crate::scene::Scene::poses), and given
+//! [`crate::io::scene`]; read into [`Scene::poses`](crate::io::scene::Scene::poses), and given
 //! per frame as [`CameraFrame::truth_poses`]). The simulator's frames carry them too.
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -54,8 +54,8 @@ use nalgebra::Point3;
 use riseg_core::Pose;
 
 use crate::{
-    camera::CameraFrame,
-    scene::ObjectPose,
+    io::scene::ObjectPose,
+    rig::camera::CameraFrame,
     segment::{union_find_join, union_find_root},
 };
 
@@ -281,7 +281,7 @@ pub fn same_motion(a: [&Pose; 2], b: [&Pose; 2], params: &CeilingParams) -> bool
     // 2·atan2(|v|, |w|) of the quaternion between them: unlike nalgebra's acos form, it
     // keeps its precision for the fractions of a degree compared here.
     let between = motion_a.rotation.rotation_to(&motion_b.rotation);
-    let angle_rad = 2.0 * between.imag().norm().atan2(between.w.abs());
+    let angle_rad = 2.0 * libm::atan2f(between.imag().norm(), between.w.abs());
     angle_rad <= params.rot_floor_rad
         && [a[0], b[0]].iter().all(|before| {
             let centre = Point3::from(before.translation.vector);
@@ -369,7 +369,7 @@ pub(crate) fn poses_by_label(
 pub(crate) mod fixture {
     use riseg_core::Pose;
 
-    use crate::scene::ObjectPose;
+    use crate::io::scene::ObjectPose;
 
     /// Width of [`row_of_three`], pixels.
     pub(crate) const W: usize = 12;

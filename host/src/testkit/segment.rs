@@ -17,7 +17,7 @@
 use riseg_core::{Intrinsics, rng::Pcg32};
 
 #[cfg(test)]
-use super::SegmenterParams;
+use crate::segment::SegmenterParams;
 
 /// Boxes of [`SyntheticTabletop::boxes`]: `[x0, x1, y0, y1, height]` (metres) and colour.
 const BOXES: [([f32; 5], [u8; 3]); 6] = [

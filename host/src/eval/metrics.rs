@@ -180,7 +180,7 @@ pub fn boundary_radius_px(width: usize, height: usize) -> usize {
 ///
 /// # Examples
 /// ```
-/// use riseg::metrics::image_metrics;
+/// use riseg::eval::metrics::image_metrics;
 /// // 4×1 image: one ground-truth object of 2 px, predicted as 3 px.
 /// let gt = [0, 1, 1, 0];
 /// let pred = [0, 5, 5, 5];
@@ -188,7 +188,7 @@ pub fn boundary_radius_px(width: usize, height: usize) -> usize {
 /// assert_eq!(m.overlap.precision, 2.0 / 3.0);
 /// assert_eq!(m.overlap.recall, 1.0);
 /// assert_eq!(m.objects_detected, 1); // F = 2·2 / (2 + 3) = 0.8 > 0.75
-/// # Ok::<(), riseg::metrics::MetricsError>(())
+/// # Ok::<(), riseg::eval::metrics::MetricsError>(())
 /// ```
 pub fn image_metrics(
     gt: &[u16],

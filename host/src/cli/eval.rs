@@ -1,5 +1,5 @@
 //! `riseg eval`: predicted label maps scored against a dataset's ground truth with the
-//! UOIS metrics of [`crate::metrics`], averaged per push index.
+//! UOIS metrics of [`crate::eval::metrics`], averaged per push index.
 //!
 //! # Folder layout
 //!
@@ -25,7 +25,7 @@
 //! # Motion ceiling
 //!
 //! When every scene folder of `DATASET` has a `poses.json` (the objects' true poses,
-//! format in [`crate::scene`]; [`dataset_poses`] says whether they do),
+//! format in [`crate::io::scene`]; [`dataset_poses`] says whether they do),
 //! [`evaluate_ceiling`] scores the motion ceiling of every ground-truth frame the same
 //! way: each scene is read as a scene folder ([`Scene::read`], which checks `poses.json`
 //! too: colour, depth, labels and poses are needed), every frame is segmented by the given
@@ -42,10 +42,10 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    camera::SceneReplay,
-    ceiling::{CeilingError, CeilingFrame, CeilingParams, MotionCeiling},
-    metrics::{self, ImageMetrics, MetricsError, MetricsRow, Prf, PushAverages},
-    scene::{LABEL_DIR, POSES_FILE, Scene, SceneError, frame_file_name, list_scenes},
+    eval::ceiling::{CeilingError, CeilingFrame, CeilingParams, MotionCeiling},
+    eval::metrics::{self, ImageMetrics, MetricsError, MetricsRow, Prf, PushAverages},
+    io::scene::{LABEL_DIR, POSES_FILE, Scene, SceneError, frame_file_name, list_scenes},
+    rig::camera::SceneReplay,
     segment::{SegmentError, StaticSegmenter},
 };
 
@@ -591,3 +591,115 @@ pub fn evaluate_ceiling(
     }
     Ok(EvalReport::from_rows(&averages.rows()).pushes)
 }
+
+// --- the `riseg eval` command ----------------------------------------------------
+
+mod command {
+    use std::path::PathBuf;
+
+    use crate::cli::eval::{self, DatasetPoses};
+    use crate::eval::ceiling::CeilingParams;
+    use crate::io::scene::{self};
+    use crate::segment::{ClassicalSegmenter, SegmenterParams};
+    use anyhow::Context as _;
+    use clap::Args;
+    use indicatif::{ProgressBar, ProgressStyle};
+
+    pub(in crate::cli) const EVAL_HELP: &str = "\
+Folder layout (PRED mirrors DATASET file for file):
+  DATASET/scene_000/label/000000.png   ground truth: 16-bit grey, instance ids, 0 = background
+                          000001.png   frame t shows the scene after t pushes: push index t
+  PRED/scene_000/label/000000.png      prediction for that frame: same size, 16-bit
+Only scene_* folders are read; every ground-truth frame needs its prediction. A missing,
+corrupt, non-16-bit or mis-sized prediction stops the run with an error naming the file.
+
+Columns (per image, then the mean over the images of one push index):
+  push          the push index (frame number)
+  images        how many images were averaged
+  overlap P     matched true-positive pixels / predicted object pixels
+  overlap R     matched true-positive pixels / ground-truth object pixels
+  overlap F     2PR / (P + R)
+  boundary P/R  the same over one-pixel object boundaries: a boundary pixel counts when it
+                lies within ceil(0.003 x image diagonal) px (3 px at 640x480) of the
+                matched object's boundary
+  objects F>75  ground-truth objects whose matched prediction has overlap F > 75 %
+Objects are matched one-to-one (Hungarian) to maximise the total overlap F (ties go to
+the matching with more boundary matches). No
+prediction gives P = 100, R = 0; no ground-truth object gives P = 0, R = 100; both empty
+give 100.
+
+Motion ceiling: when every DATASET/scene_* folder also has the objects' true poses,
+  DATASET/scene_000/poses.json  {\"frames\": [[{\"label\": 1, \"translation_m\": [x, y, z],
+                                 \"rotation_xyzw\": [qx, qy, qz, qw]}, ...], ...]}
+                                frames[t] = after t pushes, world (table) frame, metres
+(and is a whole scene folder: scene_camera.json, rgb/, depth/, label/; see `riseg gen
+--help`), a second table scores the motion ceiling of the same frames: the best mask a
+method that starts from the static segmentation and splits by motion can reach. It is the
+ground truth with two touching objects (at most 2 background pixels apart along a row or
+column) merged when every static segmentation of frames 0..t (the built-in segmenter's,
+as `riseg run` uses) put them in one segment (the segment covering most of each object)
+and every push so far moved them alike (true rigid motions within 1 mm at either
+object's centre and 1.5 degrees); merges chain through touching neighbours. Below it, per
+push: prediction / ceiling, the ratio of the objects-found columns. A malformed
+poses.json stops the run with an error naming it; without poses.json in every scene the
+ceiling is skipped with a note on stderr.
+
+Example:
+  riseg eval --gt data/sim23 --pred out/sim23-static --json static.json";
+
+    #[derive(Debug, Args)]
+    pub(in crate::cli) struct EvalArgs {
+        /// Dataset with ground truth: DATASET/scene_*/label/<frame>.png.
+        #[arg(long, value_name = "DATASET")]
+        gt: PathBuf,
+        /// Predictions mirroring the dataset: PRED/scene_*/label/<frame>.png.
+        #[arg(long, value_name = "PRED")]
+        pred: PathBuf,
+        /// Also write the table as JSON (percent values) to FILE, atomically:
+        /// {"pushes": [ROW..]}, plus "ceiling": [ROW..] when the motion ceiling is scored.
+        #[arg(long, value_name = "FILE")]
+        json: Option<PathBuf>,
+    }
+
+    pub(in crate::cli) fn command(args: &EvalArgs) -> anyhow::Result<()> {
+        let pairs = eval::find_frame_pairs(&args.gt, &args.pred)?;
+        let poses = eval::dataset_poses(&args.gt)?;
+        // The ceiling scores every ground-truth frame once more (every scene has poses).
+        let ceiling_frames = match &poses {
+            DatasetPoses::All(_) => pairs.len(),
+            DatasetPoses::Missing(_) => 0,
+        };
+        // Hidden automatically when stderr is not a terminal.
+        let bar = ProgressBar::new((pairs.len() + ceiling_frames) as u64).with_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} images  {per_sec}  eta {eta}")
+                .context("progress bar template")?,
+        );
+        // The static segmenter `riseg run` uses.
+        let mut segmenter = ClassicalSegmenter::new(SegmenterParams::default())?;
+        let report = eval::evaluate(&pairs, || bar.inc(1)).and_then(|mut report| {
+            if let DatasetPoses::All(scenes) = &poses {
+                let params = CeilingParams::DEFAULT;
+                let rows = eval::evaluate_ceiling(scenes, &mut segmenter, &params, || bar.inc(1))?;
+                report.ceiling = Some(rows);
+            }
+            Ok(report)
+        });
+        bar.finish_and_clear();
+        let report = report?;
+        if let DatasetPoses::Missing(scene) = &poses {
+            eprintln!(
+                "motion ceiling not scored: {} has no {}",
+                scene.display(),
+                scene::POSES_FILE
+            );
+        }
+        print!("{report}");
+        if let Some(path) = &args.json {
+            report.write_json(path)?;
+            eprintln!("wrote {}", path.display());
+        }
+        Ok(())
+    }
+}
+
+pub(in crate::cli) use command::*;

@@ -2,7 +2,7 @@
 //!
 //! Scene `i` of a dataset with seed `S` and scene family `L` ([`Layout`]) is simulated from
 //! [`scene_seed`]`(S, i)` with [`SimConfig::D415`] drawing `L`: the initial frame, then
-//! `pushes` scripted pushes ([`SimScene::plan_push`], [`DEFAULT_PUSH_LEN_M`]: in a loose
+//! `pushes` scripted pushes ([`SimScene::scripted_push`], [`DEFAULT_PUSH_LEN_M`]: in a loose
 //! scene one object of a touching pair across the line joining the pair; in a packed or
 //! mixed scene a push that shears the pack), each followed by a frame. Every frame gets
 //! labels and every object's pose (`poses.json`); every push gets the exact flow and an
@@ -15,8 +15,8 @@
 //! [`MAX_ATTEMPTS`]); [`GeneratedScene::attempts`] says how many were needed. All of this is
 //! deterministic, so the same dataset seed and family give the same files, byte for byte.
 //!
-//! Output layout: `OUT/scene_000/ …` (see [`crate::scene`]) and a preview per scene,
-//! `OUT/preview/scene_000.png` ([`crate::preview`]).
+//! Output layout: `OUT/scene_000/ …` (see [`crate::io::scene`]) and a preview per scene,
+//! `OUT/preview/scene_000.png` ([`crate::cli::preview`]).
 
 use std::{
     fs,
@@ -24,12 +24,12 @@ use std::{
 };
 
 use crate::{
-    imageio::{Gray16Image, ImageIoError, RgbImage, write_rgb8},
-    preview::preview,
-    scene::{PushAction, Scene, SceneCamera, SceneError},
+    cli::preview::preview,
+    io::image::{Gray16Image, ImageIoError, RgbImage, write_rgb8},
+    io::scene::{PushAction, Scene, SceneCamera, SceneError},
     sim::{
-        DEFAULT_PUSH_LEN_M, Layout, ObjectBounds, Push, RgbdFrame, SimConfig, SimError, SimScene,
-        TABLE_HALF_EXTENTS_M, ground_truth_flow,
+        DEFAULT_PUSH_LEN_M, Layout, ObjectBounds, ScriptedPush, SimConfig, SimError, SimFrame,
+        SimScene, TABLE_HALF_EXTENTS_M, ground_truth_flow,
     },
 };
 
@@ -86,7 +86,7 @@ pub struct GeneratedScene {
     /// Its preview picture.
     pub preview: RgbImage,
     /// The pushes in the world (table) frame.
-    pub pushes: Vec<Push>,
+    pub pushes: Vec<ScriptedPush>,
     /// Number of objects.
     pub objects: usize,
     /// Attempts needed (1 = the first simulation was usable).
@@ -103,7 +103,7 @@ pub fn scene_seed(dataset_seed: u64, index: usize) -> u64 {
     z ^ (z >> 31)
 }
 
-fn depth_to_units(frame: &RgbdFrame) -> Gray16Image {
+fn depth_to_units(frame: &SimFrame) -> Gray16Image {
     frame.depth_m.map(|&d| {
         let units = (d / DEPTH_UNIT_M).round();
         if units >= 1.0 {
@@ -171,7 +171,7 @@ fn simulate(
         Err(e) => return Err(e.into()),
     };
     let labels: Vec<u16> = sim.objects().iter().map(|o| o.label).collect();
-    let hidden = |frame: &RgbdFrame| {
+    let hidden = |frame: &SimFrame| {
         labels
             .iter()
             .find(|&&l| visible_px(&frame.labels, l) < MIN_VISIBLE_PX)
@@ -185,10 +185,10 @@ fn simulate(
     let mut flows = Vec::with_capacity(pushes);
     let mut done = Vec::with_capacity(pushes);
     for k in 1..=pushes {
-        let Some(push) = sim.plan_push(DEFAULT_PUSH_LEN_M) else {
+        let Some(push) = sim.scripted_push(DEFAULT_PUSH_LEN_M) else {
             return Ok(Err(format!("no touching pair to push before push {k}")));
         };
-        sim.push(push.start_world, push.direction_world, push.length_m)?;
+        sim.push(&push.command)?;
         if !on_table(&sim.object_bounds()) {
             return Ok(Err(format!("an object left the table in push {k}")));
         }
@@ -223,8 +223,8 @@ fn simulate(
     let camera_from_world = sim.world_from_camera().inverse();
     let mut actions = Vec::with_capacity(done.len());
     for (p, number) in done.iter().zip(1u32..) {
-        let start = camera_from_world * p.start_world;
-        let dir = camera_from_world.rotation * p.direction_world;
+        let start = camera_from_world * p.command.start_robot_m;
+        let dir = camera_from_world.rotation * p.command.direction_robot;
         let Some(px) = k.project(&start) else {
             return Ok(Err(format!("push {number} starts behind the camera")));
         };
@@ -233,7 +233,7 @@ fn simulate(
             start_px: [px.x, px.y],
             start_cam_m: [start.x, start.y, start.z],
             direction_cam: [dir.x, dir.y, dir.z],
-            length_m: p.length_m,
+            length_m: p.command.length_m,
         });
     }
     let poses = frames.iter().map(|f| f.object_poses.clone()).collect();
@@ -298,3 +298,70 @@ pub fn write_dataset(
     }
     Ok(())
 }
+
+// --- the `riseg gen` command ----------------------------------------------------
+
+mod command {
+    use std::path::PathBuf;
+
+    use crate::cli::generate::{PREVIEW_DIR, scene_dir_name, write_dataset};
+    use anyhow::Context as _;
+    use clap::Args;
+    use indicatif::{ProgressBar, ProgressStyle};
+
+    use crate::cli::LayoutArg;
+
+    #[derive(Debug, Args)]
+    pub(in crate::cli) struct GenArgs {
+        /// Number of scenes to make.
+        #[arg(long, default_value_t = 1)]
+        scenes: usize,
+        /// Dataset seed; scene i is simulated from a seed derived from it and i.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Output folder (created if missing).
+        #[arg(long)]
+        out: PathBuf,
+        /// Pushes per scene; each scene has pushes + 1 frames.
+        #[arg(long, default_value_t = 3)]
+        pushes: usize,
+        /// Scene family: loose, packed or mixed (described above).
+        #[arg(long, value_enum, default_value_t = LayoutArg::Loose)]
+        layout: LayoutArg,
+    }
+
+    pub(in crate::cli) fn command(args: &GenArgs) -> anyhow::Result<()> {
+        let GenArgs {
+            scenes,
+            seed,
+            out,
+            pushes,
+            layout,
+        } = args;
+        let (scenes, seed, pushes, layout) = (*scenes, *seed, *pushes, layout.layout());
+        let bar = ProgressBar::new(scenes as u64);
+        bar.set_style(
+            ProgressStyle::with_template("{bar:30} {pos}/{len} scenes  {elapsed}  {msg}")
+                .context("progress bar template")?,
+        );
+        write_dataset(out, scenes, seed, layout, pushes, |i, g| {
+            bar.set_message(format!(
+                "{}: {} objects, {} pushes",
+                scene_dir_name(i),
+                g.objects,
+                g.pushes.len()
+            ));
+            bar.inc(1);
+        })
+        .with_context(|| format!("generating {scenes} {layout} scenes into {}", out.display()))?;
+        bar.finish();
+        println!(
+            "wrote {scenes} {layout} scenes to {}; previews in {}",
+            out.display(),
+            out.join(PREVIEW_DIR).display()
+        );
+        Ok(())
+    }
+}
+
+pub(in crate::cli) use command::*;

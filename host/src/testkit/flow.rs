@@ -1,7 +1,7 @@
 //! Image pairs with exact ground-truth flow, generated procedurally (nothing downloaded):
 //! used by the flow tests, the `flow_pairs` example and `bench/flow.sh`.
 //!
-//! A [`Scene`] is a static or moving textured background plus rigid textured objects
+//! A [`FlowScene`] is a static or moving textured background plus rigid textured objects
 //! drawn on top of it in order. Every layer's texture is a continuous function of the
 //! layer's own coordinates (value-noise octaves with a roughly 1/f spectrum plus
 //! sharp-edged discs and squares), so the second image shows exactly the first image's
@@ -11,12 +11,12 @@
 //! of each first-image pixel centre (of the topmost layer there).
 //!
 //! [`FlowPair::interior`] marks pixels whose flow an estimator can be expected to get
-//! right: at least [`Scene::interior_margin_px`] pixels away from any layer boundary and
+//! right: at least [`FlowScene::interior_margin_px`] pixels away from any layer boundary and
 //! the image border in the first image, and likewise around the target position in the
 //! second image, on the same layer (so not occluded).
 
-use super::{Flow, GrayF32, RgbView};
-use rayon::prelude::*;
+use crate::flow::{Flow, GrayF32, RgbView};
+use crate::par::*;
 use riseg_core::rng::Pcg32;
 
 /// The outline of a layer, in the layer's own coordinates (origin at its centre, before
@@ -120,7 +120,7 @@ impl Layer {
 
 /// A background and objects on top of it (later objects cover earlier ones).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Scene {
+pub struct FlowScene {
     /// Image width, pixels.
     pub width: usize,
     /// Image height, pixels.
@@ -196,7 +196,7 @@ impl FlowPair {
 #[must_use]
 pub fn translated(width: usize, height: usize, seed: u64, shift_px: [f32; 2]) -> FlowPair {
     let centre = [width as f32 / 2.0, height as f32 / 2.0];
-    Scene {
+    FlowScene {
         width,
         height,
         background: Layer {
@@ -213,7 +213,7 @@ pub fn translated(width: usize, height: usize, seed: u64, shift_px: [f32; 2]) ->
 #[must_use]
 pub fn rotated(width: usize, height: usize, seed: u64, angle_rad: f32) -> FlowPair {
     let centre = [(width as f32 - 1.0) / 2.0, (height as f32 - 1.0) / 2.0];
-    Scene {
+    FlowScene {
         width,
         height,
         background: Layer {
@@ -226,7 +226,7 @@ pub fn rotated(width: usize, height: usize, seed: u64, angle_rad: f32) -> FlowPa
     .render()
 }
 
-impl Scene {
+impl FlowScene {
     /// A static textured background with 4-6 touching or overlapping objects (ellipses and
     /// rounded rectangles, 70-170 px across at 640x480, scaled with the width) near the
     /// centre; the first stays put, the others move up to 16 px and turn up to 6 degrees,
@@ -575,7 +575,7 @@ mod tests {
 
     #[test]
     fn rigid_objects_have_consistent_flow_and_masks() {
-        let scene = Scene::random_objects(160, 120, 5);
+        let scene = FlowScene::random_objects(160, 120, 5);
         assert!((4..=6).contains(&scene.objects.len()));
         let p = scene.render();
         assert_eq!(p.labels.len(), 160 * 120);
@@ -592,7 +592,7 @@ mod tests {
         assert!(n_int > 0 && n_int < p.interior.len());
         assert!(!p.interior[0]);
         // Same seed, same pair; different seed, different pair.
-        assert_eq!(Scene::random_objects(160, 120, 5).render(), p);
-        assert_ne!(Scene::random_objects(160, 120, 6), scene);
+        assert_eq!(FlowScene::random_objects(160, 120, 5).render(), p);
+        assert_ne!(FlowScene::random_objects(160, 120, 6), scene);
     }
 }

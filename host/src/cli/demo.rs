@@ -4,7 +4,7 @@
 //!
 //! [`run_demo`] builds the simulated scene of `seed` in the scene family `layout`
 //! ([`default_seed`] gives each family's default scene), runs one episode of Algorithm 1 with
-//! the built-in segmenter and flow ([`crate::episode::run_episode`]), scores each frame against the
+//! the built-in segmenter and flow ([`crate::rig::episode::run_episode`]), scores each frame against the
 //! simulator's ground truth, and writes into the output folder:
 //! - `frame_N.png` for each frame `N` (the scene after `N` pushes), four panels:
 //!   top left the static segmentation, top right the RISeg mask with FindAction's certain
@@ -21,21 +21,20 @@
 use core::fmt::Write as _;
 use std::path::Path;
 
-use nalgebra::Point3;
 use riseg_core::{Config, Intrinsics, action::Push};
 
 use crate::{
-    bench::{BenchConfig, SceneResult, run_bench, score_frame},
+    cli::bench::{BenchConfig, SceneResult, run_bench, score_frame},
+    cli::eval::PushReport,
     draw::{Clip, arrow, dot, label_colour, line, overlay_labels},
-    episode::{Decision, EpisodeFrame, Stop},
-    eval::PushReport,
+    eval::metrics::PushAverages,
     flow::{DisFlow, FlowParams, viz::flow_to_rgb},
-    imageio::{RgbImage, write_atomic, write_rgb8},
-    metrics::PushAverages,
-    robot::PushCommand,
+    io::image::{RgbImage, write_atomic, write_rgb8},
+    rig::episode::{Decision, EpisodeFrame, Stop, run_episode},
+    rig::robot::PushCommand,
+    rig::tracker::{Observation, Tracker},
     segment::{ClassicalSegmenter, SegmenterParams},
     sim::{Layout, SimConfig, SimRig, SimScene},
-    tracker::{Observation, Tracker},
 };
 
 /// The default loose demo scene: six objects; the static segmenter merges two pairs of
@@ -111,12 +110,18 @@ pub fn run_demo(
         Config::PAPER,
     )?;
     let mut frames = Vec::new();
-    let summary = rig.run(&mut tracker, |f: &EpisodeFrame<'_>| {
-        let done = demo_frame(out, f).map_err(|e| format!("{e:#}"))?;
-        frames.push(done);
-        on_frame(f.t);
-        Ok(())
-    })?;
+    let summary = run_episode(
+        &mut rig.camera,
+        &mut rig.robot,
+        &mut tracker,
+        &rig.setup,
+        |f: &EpisodeFrame<'_>| {
+            let done = demo_frame(out, f).map_err(|e| format!("{e:#}"))?;
+            frames.push(done);
+            on_frame(f.t);
+            Ok(())
+        },
+    )?;
     let report = DemoReport {
         seed,
         layout,
@@ -170,19 +175,8 @@ pub fn panels(f: &EpisodeFrame<'_>) -> RgbImage {
     for c in f.action.certain() {
         dot(&mut riseg_panel, clip, c.centre_px, WHITE, 2);
     }
-    if let Decision::Push {
-        push,
-        edge_cam_m,
-        command,
-    } = f.decision
-    {
-        draw_push(
-            &mut riseg_panel,
-            &f.frame.intrinsics,
-            &push,
-            &edge_cam_m,
-            &command,
-        );
+    if let Decision::Push { push, command } = f.decision {
+        draw_push(&mut riseg_panel, &f.frame.intrinsics, &push, &command);
     }
     let dim = f.frame.rgb.map(|c| c.map(|v| v / 3));
     let mut frames_panel = dim.clone();
@@ -221,20 +215,14 @@ pub fn panels(f: &EpisodeFrame<'_>) -> RgbImage {
     })
 }
 
-/// Draws the tool's path, projected through the camera: from the object's edge backed
-/// off by the approach (the command's length beyond FindAction's), along the push
-/// direction, to the end of the push; a dot at FindAction's start if it does not project.
-fn draw_push(
-    img: &mut RgbImage,
-    intrinsics: &Intrinsics,
-    push: &Push,
-    edge_cam_m: &Point3<f32>,
-    command: &PushCommand,
-) {
+/// Draws the tool's path, projected through the camera: from the object's edge (the push's
+/// start) backed off by the approach (the command's length beyond FindAction's), along the
+/// push direction, to the end of the push; a dot at the start if it does not project.
+fn draw_push(img: &mut RgbImage, intrinsics: &Intrinsics, push: &Push, command: &PushCommand) {
     let clip = Clip::all(img);
     let approach_m = command.length_m - push.length_m;
-    let from = edge_cam_m - push.direction_cam * approach_m;
-    let to = edge_cam_m + push.direction_cam * push.length_m;
+    let from = push.start_cam_m - push.direction_cam * approach_m;
+    let to = push.start_cam_m + push.direction_cam * push.length_m;
     match (intrinsics.project(&from), intrinsics.project(&to)) {
         (Some(a), Some(b)) => arrow(img, clip, [a.x, a.y], [b.x, b.y], YELLOW, 3),
         _ => dot(img, clip, push.start_px, YELLOW, 3),
@@ -302,7 +290,7 @@ pub fn bench_spread(report: &DemoReport) -> anyhow::Result<String> {
         ..BenchConfig::new(SPREAD_SCENES, 1)
     };
     let (_, scenes) = run_bench(&cfg, |_| {})?;
-    let found = |m: Option<&crate::metrics::ImageMetrics>| {
+    let found = |m: Option<&crate::eval::metrics::ImageMetrics>| {
         m.map_or(0.0, |m| 100.0 * m.objects_detected_share)
     };
     let column = |pick: &dyn Fn(&SceneResult) -> f64| {
@@ -413,3 +401,94 @@ pub fn stop_text(stop: &Stop) -> String {
         Stop::Refused(why) => format!("the planned push was refused: {why}"),
     }
 }
+
+// --- the `riseg demo` command ----------------------------------------------------
+
+mod command {
+    use std::path::PathBuf;
+
+    use anyhow::Context as _;
+    use clap::Args;
+    use indicatif::{ProgressBar, ProgressStyle};
+
+    use crate::cli::LayoutArg;
+
+    pub(in crate::cli) const DEMO_HELP: &str = "\
+Run the whole loop on a simulated scene and write a report (the default command).
+
+A simulated table with touching objects (by default a packed scene of look-alike boxes or \
+cans, --layout; see `riseg gen --help`) is seen by a D415-like RGB-D camera; the built-in \
+static segmenter merges some of them. The loop of Algorithm 1 then runs: FindAction picks \
+a push between two certain regions with an uncertain one between them, the simulated arm \
+makes it (the pixel push becomes a metric push in the camera frame, then a level push in \
+the robot frame through the hand-eye transform, checked against the arm's limits), the \
+flow and the body frames' twists show what moved differently, and UpdateMask corrects the \
+mask. At most 3 pushes.
+
+Prints a table per push (static segmenter vs RISeg: overlap F, boundary F, objects found \
+with F > 75, percent against the simulator's ground truth) and writes to --out:
+  frame_N.png   the scene after N pushes: static mask | RISeg mask and the next push,
+                body frames by twist group | optical flow colour wheel
+  report.md     the table and the pictures
+
+Example: riseg demo --seed 3 --out /tmp/riseg-demo";
+
+    #[derive(Debug, Args)]
+    pub(in crate::cli) struct DemoArgs {
+        /// Scene family (see `riseg gen --help`).
+        #[arg(long, value_enum, default_value_t = LayoutArg::Packed)]
+        layout: LayoutArg,
+        /// Simulated scene seed [default: a typical scene of the family: 2 loose, 0 packed, 0
+        /// mixed].
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Output folder (created if missing; earlier demo files in it are replaced).
+        #[arg(long, default_value = "riseg-demo")]
+        out: PathBuf,
+    }
+
+    impl Default for DemoArgs {
+        fn default() -> Self {
+            Self {
+                layout: LayoutArg::Packed,
+                seed: None,
+                out: PathBuf::from("riseg-demo"),
+            }
+        }
+    }
+
+    pub(in crate::cli) fn command(args: &DemoArgs) -> anyhow::Result<()> {
+        let bar = ProgressBar::new(4).with_style(
+            ProgressStyle::with_template("{spinner} {msg} {elapsed}")
+                .context("progress bar template")?,
+        );
+        bar.enable_steady_tick(core::time::Duration::from_millis(120));
+        bar.set_message("frame 0: rendering, segmenting");
+        let layout = args.layout.layout();
+        let seed = args
+            .seed
+            .unwrap_or_else(|| crate::cli::demo::default_seed(layout));
+        let report = crate::cli::demo::run_demo(&args.out, seed, layout, |t| {
+            bar.set_message(format!(
+                "frame {t} done; pushing, rendering frame {}",
+                t + 1
+            ));
+        })
+        .with_context(|| format!("demo on simulated {layout} scene {seed}"))?;
+        bar.finish_and_clear();
+        println!(
+            "riseg demo: simulated {layout} scene {}, {} pushes; {}.",
+            report.seed,
+            report.frames.len().saturating_sub(1),
+            crate::cli::demo::stop_text(&report.stop)
+        );
+        print!("{}", crate::cli::demo::table(&report));
+        println!(
+            "pictures and report: {}",
+            args.out.join("report.md").display()
+        );
+        Ok(())
+    }
+}
+
+pub(in crate::cli) use command::*;

@@ -22,20 +22,18 @@
 //! The core's buffers are sized on the first frame and reused (no allocation per step in
 //! the core; the host allocates the flow field and the returned masks).
 
-use std::time::Instant;
-
 use riseg_core::{
     Config, ImageView,
     frames::{BodyFrame, MotionInput},
     group::NO_GROUP,
+    owned::WorkspaceBuf,
     pipeline::{Stage, StepReport, update_mask_observed},
 };
 
 use crate::{
-    camera::CameraFrame,
     flow::{Flow, FlowError, FlowEstimator, RgbView},
+    rig::camera::CameraFrame,
     segment::{SegmentError, Segmentation, StaticSegmenter},
-    workspace::WorkspaceBuf,
 };
 
 /// Why a tracker step failed.
@@ -280,9 +278,9 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
         let static_seg = match given.static_seg {
             Some(seg) => seg,
             None => {
-                let clock = Instant::now();
+                let clock = Stopwatch::start();
                 let seg = self.segmenter.segment(&frame.rgbd()?, &frame.intrinsics)?;
-                times.segment_ms = ms_since(clock);
+                times.segment_ms = clock.ms();
                 seg
             }
         };
@@ -304,12 +302,12 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
         let flow = match given.flow {
             Some(flow) => flow,
             None => {
-                let clock = Instant::now();
+                let clock = Stopwatch::start();
                 let flow = self.flow.estimate(
                     RgbView::new(w, h, prev.frame.rgb.as_slice().as_flattened())?,
                     RgbView::new(w, h, frame.rgb.as_slice().as_flattened())?,
                 )?;
-                times.flow_ms = ms_since(clock);
+                times.flow_ms = clock.ms();
                 flow
             }
         };
@@ -329,7 +327,7 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
         let static_t1 = ImageView::packed(w, h, &static_seg.labels)?;
         let mut mask = vec![0u16; w * h];
         let mut view = ws.2.view();
-        let mut stage_clock = Instant::now();
+        let mut stage_clock = Stopwatch::start();
         let report = update_mask_observed(
             &input,
             &static_t1,
@@ -337,14 +335,14 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
             &mut view,
             &mut mask,
             |stage| {
-                let spent = ms_since(stage_clock);
+                let spent = stage_clock.ms();
                 match stage {
                     Stage::Frames => times.frames_ms = spent,
                     Stage::Twists => times.twists_ms = spent,
                     Stage::Grouping => times.grouping_ms = spent,
                     Stage::Mask => times.mask_ms = spent,
                 }
-                stage_clock = Instant::now();
+                stage_clock = Stopwatch::start();
             },
         )?;
         let count = report.frames.count;
@@ -382,6 +380,31 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
     }
 }
 
-fn ms_since(start: Instant) -> f64 {
-    start.elapsed().as_secs_f64() * 1e3
+/// Wall-clock time of a stage. `std::time::Instant` panics on wasm32-unknown-unknown, so
+/// there every stage reads 0 ms: in the browser, timing is the caller's.
+#[derive(Clone, Copy)]
+struct Stopwatch {
+    #[cfg(not(all(target_arch = "wasm32", target_os = "unknown")))]
+    start: std::time::Instant,
+}
+
+impl Stopwatch {
+    fn start() -> Self {
+        Self {
+            #[cfg(not(all(target_arch = "wasm32", target_os = "unknown")))]
+            start: std::time::Instant::now(),
+        }
+    }
+
+    /// Milliseconds since [`Stopwatch::start`].
+    #[cfg(not(all(target_arch = "wasm32", target_os = "unknown")))]
+    fn ms(self) -> f64 {
+        self.start.elapsed().as_secs_f64() * 1e3
+    }
+
+    #[cfg(all(target_arch = "wasm32", target_os = "unknown"))]
+    #[allow(clippy::unused_self)]
+    fn ms(self) -> f64 {
+        0.0
+    }
 }

@@ -20,7 +20,7 @@
 //! STATIC/S/heat/NNNNNN.png    its 0-255 heatmap, 8-bit grey (optional, per frame)
 //! ```
 //!
-//! These are the names of a scene folder's own `flow/` and `label/` ([`crate::scene`]),
+//! These are the names of a scene folder's own `flow/` and `label/` ([`crate::io::scene`]),
 //! so a dataset `riseg gen` wrote is a valid `FLOW` (its exact flow) and `STATIC` (its
 //! ground truth as the static segmentation). Rules:
 //! - Every file must have the size `S/scene_camera.json` gives, and every frame its files
@@ -48,7 +48,7 @@
 //! types would instead have to be told, out of band, which scene and frame each call
 //! serves, and every mix of given and computed stages would be another tracker type.
 //!
-//! [`Observation`]: crate::tracker::Observation
+//! [`Observation`]: crate::rig::tracker::Observation
 
 use std::{
     ffi::OsStr,
@@ -56,17 +56,17 @@ use std::{
 };
 
 use crate::{
-    camera::SceneReplay,
     flow::{Flow, FlowEstimator},
-    imageio::{
+    io::image::{
         Gray16Image, ImageIoError, ImageProblem, ImageSizeError, read_flo, read_gray_widened,
         read_gray8, read_sized, write_gray16,
     },
-    scene::{
+    io::scene::{
         FLOW_DIR, HEAT_DIR, LABEL_DIR, Scene, SceneCamera, SceneError, frame_file, frame_file_name,
     },
+    rig::camera::SceneReplay,
+    rig::tracker::{GivenInputs, TrackError, Tracker},
     segment::{HEAT_CERTAIN, Segmentation, StaticSegmenter},
-    tracker::{GivenInputs, TrackError, Tracker},
 };
 
 /// Why a run failed; every variant names the scene folder or file.
@@ -305,3 +305,120 @@ pub fn run_scene<S: StaticSegmenter, F: FlowEstimator>(
     }
     Ok(count)
 }
+
+// --- the `riseg run` command ----------------------------------------------------
+
+mod command {
+    use std::path::PathBuf;
+
+    use crate::cli::run::{InputDirs, run_scene};
+    use crate::flow::{DisFlow, FlowParams};
+    use crate::rig::tracker::Tracker;
+    use crate::segment::{ClassicalSegmenter, SegmenterParams};
+    use anyhow::{Context as _, bail};
+    use clap::Args;
+    use indicatif::{ProgressBar, ProgressStyle};
+
+    pub(in crate::cli) const RUN_HELP: &str = "\
+Run RISeg on recorded scenes (the pushes already happened) and write its masks.
+
+For each scene folder (the format `riseg gen` writes and `riseg gen --help` describes: \
+scene_camera.json, rgb/NNNNNN.png, depth/NNNNNN.png; label/ and actions.json are not \
+needed), frame 0 is segmented by the built-in static segmenter; for every later frame the \
+optical flow from the previous frame, the new static segmentation and riseg-core's \
+UpdateMask carry the mask forward and split what moved differently. The mask of frame t \
+is written to PRED/<scene>/label/<t>.png (16-bit, 0 = background), the layout \
+`riseg eval --pred PRED` reads. Each PNG is written atomically, and a scene whose \
+folder, input files or tracking fail writes no mask.
+
+Flow and static segmentation from files: --flow-dir and --static-dir replace the \
+built-in flow and segmenter by files computed elsewhere (RAFT flow, MSMFormer or UCN \
+labels), read for the scene folder named S and frame t (NNNNNN = t, six digits):
+
+  FLOW/S/flow/NNNNNN.flo      flow from frame t to t+1 (Middlebury .flo, pixels);
+                              a component >= 1e9 is unknown and is not used
+  STATIC/S/label/NNNNNN.png   static labels of frame t: 8- or 16-bit grey,
+                              0 = background; ids are renumbered 1..n in order
+  STATIC/S/heat/NNNNNN.png    optional 0-255 heatmap of frame t, 8-bit grey; without
+                              it labelled pixels count as certain (run uses none)
+
+These are the names of a scene folder's own flow/ and label/, so a dataset made by \
+`riseg gen` serves as FLOW (its exact flow) and as STATIC (its ground truth). Every file \
+must have the size in S/scene_camera.json; a missing, corrupt, mis-sized or (heatmap) \
+non-8-bit file stops the run with an error naming the file, the scene and the frame.
+
+Examples:
+  riseg run --scene data/sim23/scene_004 --out out/pred
+  riseg run --dataset data/sim23 --out out/pred && riseg eval --gt data/sim23 --pred out/pred
+  riseg run --dataset data/packed --flow-dir data/packed --out out/exact   (exact flow)
+  riseg run --dataset data/real --flow-dir raft --static-dir msmformer --out out/learned";
+
+    #[derive(Debug, Args)]
+    #[command(group(clap::ArgGroup::new("input").required(true).args(["scene", "dataset"])))]
+    pub(in crate::cli) struct RunArgs {
+        /// One scene folder.
+        #[arg(long, value_name = "DIR")]
+        scene: Option<PathBuf>,
+        /// A dataset: every scene_* folder in it.
+        #[arg(long, value_name = "DIR")]
+        dataset: Option<PathBuf>,
+        /// Output folder: masks go to OUT/<scene name>/label/NNNNNN.png.
+        #[arg(long, value_name = "PRED")]
+        out: PathBuf,
+        /// Read the flow from frame t to t+1 of scene S from FLOW/S/flow/<t>.flo (Middlebury)
+        /// instead of computing it; a dataset made by `riseg gen` holds its exact flow.
+        #[arg(long, value_name = "FLOW")]
+        flow_dir: Option<PathBuf>,
+        /// Read the static labels of frame t of scene S from STATIC/S/label/<t>.png (8- or
+        /// 16-bit, 0 = background) and its heatmap from STATIC/S/heat/<t>.png (8-bit, optional)
+        /// instead of segmenting.
+        #[arg(long, value_name = "STATIC")]
+        static_dir: Option<PathBuf>,
+    }
+
+    pub(in crate::cli) fn command(args: &RunArgs) -> anyhow::Result<()> {
+        let scenes = match (&args.scene, &args.dataset) {
+            (Some(scene), _) => vec![scene.clone()],
+            (None, Some(dataset)) => {
+                let scenes = crate::io::scene::list_scenes(dataset)?;
+                if scenes.is_empty() {
+                    bail!("{}: no scene_* folders", dataset.display());
+                }
+                scenes
+            }
+            (None, None) => bail!("give --scene DIR or --dataset DIR"),
+        };
+        let mut tracker = Tracker::new(
+            ClassicalSegmenter::new(SegmenterParams::default())?,
+            DisFlow::new(FlowParams::MEDIUM)?,
+            riseg_core::Config::PAPER,
+        )?;
+        let bar = ProgressBar::new(scenes.len() as u64).with_style(
+            ProgressStyle::with_template(
+                "{bar:30} {pos}/{len} scenes  {elapsed}  eta {eta}  {msg}",
+            )
+            .context("progress bar template")?,
+        );
+        let inputs = InputDirs {
+            flow: args.flow_dir.clone(),
+            statics: args.static_dir.clone(),
+        };
+        let mut frames = 0;
+        for dir in &scenes {
+            let name = dir.file_name().unwrap_or(dir.as_os_str()).to_string_lossy();
+            frames += run_scene(&mut tracker, dir, &inputs, &args.out, |t| {
+                bar.set_message(format!("{name}: frame {t}"));
+            })?;
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+        println!(
+            "wrote {frames} masks of {} scenes to {}",
+            scenes.len(),
+            args.out.display()
+        );
+        Ok(())
+    }
+}
+
+pub(in crate::cli) use command::*;

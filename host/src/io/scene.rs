@@ -50,8 +50,8 @@ use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use riseg_core::{Intrinsics, Pose};
 use serde::{Deserialize, Serialize};
 
-use crate::imageio::{
-    self, FlowImage, Gray16Image, Image, ImageIoError, RgbImage, read_flo, read_gray_widened,
+use crate::io::image::{
+    FlowImage, Gray16Image, Image, ImageIoError, RgbImage, read_flo, read_gray_widened,
     read_gray16, read_rgb8, write_atomic, write_flo, write_gray16, write_rgb8,
 };
 
@@ -483,7 +483,7 @@ fn read_sized<T>(
     camera: &SceneCamera,
     read: impl Fn(&Path) -> Result<Image<T>, ImageIoError>,
 ) -> Result<Image<T>, SceneError> {
-    Ok(imageio::read_sized(
+    Ok(crate::io::image::read_sized(
         path,
         camera.width,
         camera.height,
@@ -709,7 +709,7 @@ impl Scene {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        let tmp = parent.join(imageio::temp_name(&name, "partial"));
+        let tmp = parent.join(crate::io::image::temp_name(&name, "partial"));
         if tmp.exists() {
             // Left over from a crashed process that had the same id.
             fs::remove_dir_all(&tmp).map_err(|e| io_error(&tmp, e))?;

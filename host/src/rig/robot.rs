@@ -10,18 +10,18 @@
 //!
 //! # From FindAction's push to a command
 //!
-//! FindAction's start point is where its walk out of the pushed cluster first meets a
-//! pixel the heatmap calls table: on the object's rim (a few millimetres inside its
-//! outline, or the outline of a pack of objects) or just beyond it. The caller finds where
-//! the pushed segment really ends along the push line (the object's `edge`, camera frame);
-//! [`plan_push`] then
+//! FindAction decides the push once, in the camera frame: it starts at the pushed object's
+//! edge (where the pushed segment of the mask ends), points at the pushed cluster's centre
+//! and is [`riseg_core::Config::push_len_m`] long. [`plan_push`] only says the same in the
+//! robot's terms:
 //! 1. maps the edge and the direction to the robot frame and levels the direction (a push
 //!    slides along the table);
 //! 2. lowers the tool to half the edge's height over the table (objects tip less when
 //!    pushed near their middle), at least [`PushGeometry::min_height_m`];
 //! 3. backs the start off the edge by [`PushGeometry::approach_m`] so the tool starts
 //!    clear of the object, and lengthens the motion by the same amount: the object itself
-//!    moves about FindAction's push length.
+//!    moves about FindAction's push length;
+//! 4. checks the command against the arm's [`PushLimits`].
 use nalgebra::{Point3, Vector3};
 use riseg_core::{Pose, action::Push};
 
@@ -137,7 +137,7 @@ impl PushLimits {
     }
 }
 
-/// Turns a FindAction push whose object ends at `edge_cam_m` (camera frame, metres) into a
+/// Turns a FindAction push (camera frame; it starts at the pushed object's edge) into a
 /// level robot command (module docs), or refuses it.
 ///
 /// # Errors
@@ -145,12 +145,11 @@ impl PushLimits {
 /// robot frame; the errors of [`PushLimits::check`].
 pub fn plan_push(
     push: &Push,
-    edge_cam_m: &Point3<f32>,
     robot_from_camera: &Pose,
     geometry: &PushGeometry,
     limits: &PushLimits,
 ) -> Result<PushCommand, PushRefused> {
-    let edge = robot_from_camera * edge_cam_m;
+    let edge = robot_from_camera * push.start_cam_m;
     let mut direction = robot_from_camera.rotation * push.direction_cam;
     direction.z = 0.0;
     let direction = direction
@@ -233,11 +232,11 @@ mod tests {
         let push = Push {
             start_px: [0.0, 0.0],
             target_px: [0.0, 0.0],
-            start_cam_m: Point3::origin(),
+            start_cam_m: t.inverse() * edge_robot,
             direction_cam: t.inverse().rotation * dir_robot,
             length_m,
         };
-        plan_push(&push, &(t.inverse() * edge_robot), &t, &GEOMETRY, &limits())
+        plan_push(&push, &t, &GEOMETRY, &limits())
     }
 
     #[test]

@@ -4,8 +4,8 @@
 use riseg_core::Intrinsics;
 
 use crate::{
-    imageio::{DepthImage, Gray16Image, RgbImage},
-    scene::{ObjectPose, Scene},
+    io::image::{DepthImage, Gray16Image, RgbImage},
+    io::scene::{ObjectPose, Scene},
     segment::{RgbdFrame, SegmentError},
 };
 
@@ -24,7 +24,7 @@ pub struct CameraFrame {
     pub truth: Option<Gray16Image>,
     /// Every object's true pose when the frame was taken (world frame, labels as in
     /// `truth`), when the source knows them: the simulator, or a recording with a
-    /// `poses.json`. Only for scoring (the motion ceiling, [`crate::ceiling`]).
+    /// `poses.json`. Only for scoring (the motion ceiling, [`crate::eval::ceiling`]).
     pub truth_poses: Option<Vec<ObjectPose>>,
 }
 

@@ -4,27 +4,27 @@
 //! # Contract
 //!
 //! [`run_episode`] captures frame 0, then for each frame: the [`Tracker`] gives the static
-//! segmentation and the accumulated mask; FindAction runs on the static heatmap and the
-//! depth; its push is turned into a robot command ([`command_for`]) and sent. The episode
+//! segmentation and the accumulated mask; FindAction runs on the static heatmap, the depth
+//! and the accumulated mask and plans the push (camera frame); [`plan_push`] maps it into
+//! the robot frame and checks it against the robot's limits, and it is sent. The episode
 //! stops, and says why ([`Stop`]), when FindAction finds no push, after
 //! [`Config::max_pushes`] pushes, or when a planned push breaks the robot's limits: that
 //! push is refused and never sent. The caller sees every frame, with what was decided, in
 //! `on_frame` before the push is made.
 
-use nalgebra::Point3;
 use riseg_core::{
     Config, ImageView,
     action::{ActionReport, Push, find_action},
+    owned::ActionBuf,
     pipeline::RisegLoop,
 };
 
 use crate::{
-    camera::{Camera, CameraError, CameraFrame},
     flow::FlowEstimator,
-    robot::{PushCommand, PushRefused, Robot, RobotError, RobotSetup, plan_push},
+    rig::camera::{Camera, CameraError, CameraFrame},
+    rig::robot::{PushCommand, PushRefused, Robot, RobotError, RobotSetup, plan_push},
+    rig::tracker::{Observation, TrackError, Tracker},
     segment::StaticSegmenter,
-    tracker::{Observation, TrackError, Tracker},
-    workspace::ActionBuf,
 };
 
 /// Why an episode failed (a refused push is not a failure: see [`Stop::Refused`]).
@@ -66,9 +66,7 @@ pub enum Decision {
     Push {
         /// FindAction's push (pixels and camera frame).
         push: Push,
-        /// Where the pushed segment ends along the push line, camera frame, metres.
-        edge_cam_m: Point3<f32>,
-        /// The command, robot frame.
+        /// The same push in the robot frame, as sent.
         command: PushCommand,
     },
     /// Stop here.
@@ -132,20 +130,13 @@ where
             &ImageView::packed(w, h, &observation.static_seg.heatmap)
                 .map_err(EpisodeError::Action)?,
             &ImageView::packed(w, h, frame.depth_m.as_slice()).map_err(EpisodeError::Action)?,
+            &ImageView::packed(w, h, &observation.mask).map_err(EpisodeError::Action)?,
             &frame.intrinsics,
             &cfg,
             scratch.view(),
         )
         .map_err(EpisodeError::Action)?;
-        let decision = decide(
-            &mut state,
-            &cfg,
-            &action,
-            frame,
-            &observation.mask,
-            robot,
-            setup,
-        );
+        let decision = decide(&mut state, &cfg, &action, robot, setup);
         on_frame(&EpisodeFrame {
             t,
             frame,
@@ -175,8 +166,6 @@ fn decide(
     state: &mut RisegLoop,
     cfg: &Config,
     action: &ActionReport,
-    frame: &CameraFrame,
-    mask: &[u16],
     robot: &impl Robot,
     setup: &RobotSetup,
 ) -> Decision {
@@ -184,76 +173,14 @@ fn decide(
     match state.next(action.push()) {
         None if budget_left => Decision::Stop(Stop::NoAction),
         None => Decision::Stop(Stop::PushBudget),
-        Some(push) => match command_for(&push, frame, mask, robot, setup) {
-            Ok((edge_cam_m, command)) => Decision::Push {
-                push,
-                edge_cam_m,
-                command,
-            },
+        Some(push) => match plan_push(
+            &push,
+            &setup.robot_from_camera,
+            &setup.geometry,
+            &robot.limits(),
+        ) {
+            Ok(command) => Decision::Push { push, command },
             Err(refused) => Decision::Stop(Stop::Refused(refused)),
         },
     }
-}
-
-/// Turns FindAction's `push` into a robot command: finds where the pushed segment of
-/// `mask` ends along the push line ([`object_edge_px`]), back-projects that at the depth of
-/// the pushed cluster's centre, and plans the level push through the hand-eye transform
-/// ([`plan_push`]).
-///
-/// # Errors
-/// [`PushRefused`] when the command breaks the robot's limits or is not finite.
-pub fn command_for(
-    push: &Push,
-    frame: &CameraFrame,
-    mask: &[u16],
-    robot: &impl Robot,
-    setup: &RobotSetup,
-) -> Result<(Point3<f32>, PushCommand), PushRefused> {
-    let (w, h) = frame.size();
-    let edge_px = object_edge_px(mask, w, h, push).unwrap_or(push.start_px);
-    let edge_cam_m = frame
-        .intrinsics
-        .back_project(edge_px[0], edge_px[1], push.start_cam_m.z);
-    let command = plan_push(
-        push,
-        &edge_cam_m,
-        &setup.robot_from_camera,
-        &setup.geometry,
-        &robot.limits(),
-    )?;
-    Ok((edge_cam_m, command))
-}
-
-/// Walks from the push's target (the pushed cluster's centre) back through its start, in
-/// half-pixel steps, while the pixels keep the target's label in `mask`; returns the last
-/// point inside. `None` when the target is background or outside the image.
-#[must_use]
-pub fn object_edge_px(mask: &[u16], width: usize, height: usize, push: &Push) -> Option<[f32; 2]> {
-    let label_at = |p: [f32; 2]| -> Option<u16> {
-        let (x, y) = (p[0].round(), p[1].round());
-        if !(x >= 0.0 && y >= 0.0 && (x as usize) < width && (y as usize) < height) {
-            return None;
-        }
-        mask.get(y as usize * width + x as usize).copied()
-    };
-    let target = push.target_px;
-    let label = label_at(target).filter(|&l| l != 0)?;
-    let (dx, dy) = (push.start_px[0] - target[0], push.start_px[1] - target[1]);
-    let len = (dx * dx + dy * dy).sqrt();
-    if !(len > 1e-3 && len.is_finite()) {
-        return None;
-    }
-    let step = [0.5 * dx / len, 0.5 * dy / len];
-    let mut inside = target;
-    for i in 1..=2 * (width + height) {
-        let p = [
-            target[0] + step[0] * i as f32,
-            target[1] + step[1] * i as f32,
-        ];
-        if label_at(p) != Some(label) {
-            break;
-        }
-        inside = p;
-    }
-    Some(inside)
 }

@@ -8,20 +8,17 @@
 use core::cell::RefCell;
 use std::rc::Rc;
 
-use super::{MAX_PUSH_LEN_M, SimScene, TABLE_HALF_EXTENTS_M};
+use super::{PUSHER_MAX_TRAVEL_M, SimScene, TABLE_HALF_EXTENTS_M};
 use crate::{
-    camera::{Camera, CameraError, CameraFrame},
-    episode::{EpisodeError, EpisodeFrame, EpisodeSummary, run_episode},
-    flow::FlowEstimator,
-    robot::{PushCommand, PushGeometry, PushLimits, Robot, RobotError, RobotSetup},
-    segment::StaticSegmenter,
-    tracker::Tracker,
+    rig::camera::{Camera, CameraError, CameraFrame},
+    rig::robot::{PushCommand, PushGeometry, PushLimits, Robot, RobotError, RobotSetup},
 };
 
-/// Longest push the simulated arm accepts, metres (approach included).
-pub const SIM_MAX_PUSH_LEN_M: f32 = 0.05;
+/// Longest push the simulated arm accepts, metres (approach included); its
+/// [`PushLimits::max_push_len_m`].
+pub const ARM_MAX_PUSH_LEN_M: f32 = 0.05;
 /// Highest the simulated tool may go over the table, metres.
-pub const SIM_MAX_TOOL_HEIGHT_M: f32 = 0.3;
+pub const ARM_MAX_TOOL_HEIGHT_M: f32 = 0.3;
 
 /// Renders the shared scene, with its ground-truth labels and object poses.
 #[derive(Debug)]
@@ -76,14 +73,15 @@ impl Robot for SimRobot {
             .map_err(|e| RobotError(format!("refused: {e}")))?;
         self.scene
             .borrow_mut()
-            .push(cmd.start_robot_m, cmd.direction_robot, cmd.length_m)
+            .push(cmd)
             .map_err(|e| RobotError(e.to_string()))?;
         self.pushes.push(*cmd);
         Ok(())
     }
 }
 
-/// The simulated devices and their calibration.
+/// The simulated devices and their calibration; the loop
+/// ([`crate::rig::episode::run_episode`]) uses them as it would a real camera and arm.
 #[derive(Debug)]
 pub struct SimRig {
     /// The camera.
@@ -96,26 +94,8 @@ pub struct SimRig {
 }
 
 impl SimRig {
-    /// Runs one episode of Algorithm 1 on these devices ([`run_episode`]).
-    ///
-    /// # Errors
-    /// As [`run_episode`].
-    pub fn run<S: StaticSegmenter, F: FlowEstimator>(
-        &mut self,
-        tracker: &mut Tracker<S, F>,
-        on_frame: impl FnMut(&EpisodeFrame<'_>) -> Result<(), String>,
-    ) -> Result<EpisodeSummary, EpisodeError> {
-        run_episode(
-            &mut self.camera,
-            &mut self.robot,
-            tracker,
-            &self.setup,
-            on_frame,
-        )
-    }
-
     /// Devices over `scene`. The workspace box is the table top (x, y) from the tool's
-    /// radius up to [`SIM_MAX_TOOL_HEIGHT_M`]; pushes up to [`SIM_MAX_PUSH_LEN_M`].
+    /// radius up to [`ARM_MAX_TOOL_HEIGHT_M`]; pushes up to [`ARM_MAX_PUSH_LEN_M`].
     #[must_use]
     pub fn new(scene: SimScene) -> Self {
         let radius_m = scene.config().pusher_radius_m;
@@ -123,8 +103,8 @@ impl SimRig {
         let [hx, hy] = TABLE_HALF_EXTENTS_M;
         let limits = PushLimits {
             workspace_min_m: [-hx, -hy, radius_m],
-            workspace_max_m: [hx, hy, SIM_MAX_TOOL_HEIGHT_M],
-            max_push_len_m: SIM_MAX_PUSH_LEN_M.min(MAX_PUSH_LEN_M),
+            workspace_max_m: [hx, hy, ARM_MAX_TOOL_HEIGHT_M],
+            max_push_len_m: ARM_MAX_PUSH_LEN_M.min(PUSHER_MAX_TRAVEL_M),
         };
         let geometry = PushGeometry {
             table_z_m: 0.0,

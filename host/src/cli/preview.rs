@@ -7,8 +7,8 @@
 
 use crate::{
     draw::{Clip, arrow, label_colour},
-    imageio::{Image, RgbImage},
-    scene::Scene,
+    io::image::{Image, RgbImage},
+    io::scene::Scene,
 };
 
 const MISSING_DEPTH: [u8; 3] = [110, 0, 0];

@@ -5,12 +5,12 @@
 //! Scene `i` of seed `S` is the simulator's scene [`scene_seed`]`(S, i)` of the configured
 //! scene family ([`BenchConfig::layout`]; the next attempt seed when no placement fits, as
 //! `riseg gen` does). On each scene one episode of
-//! Algorithm 1 runs ([`crate::episode::run_episode`]) with the built-in segmenter and flow: the loop picks
+//! Algorithm 1 runs ([`crate::rig::episode::run_episode`]) with the built-in segmenter and flow: the loop picks
 //! its own pushes, at most [`Config::max_pushes`]. Every captured frame `t` is scored
 //! against the simulator's ground truth three times: the static segmentation of that frame
 //! (the `static` rows), the accumulated RISeg mask (the `riseg` rows; at `t = 0` both are
 //! the static segmentation), and the motion ceiling of the episode's frames `0..=t`
-//! ([`crate::ceiling`], [`CeilingParams::DEFAULT`]; the `ceiling` rows), computed from the
+//! ([`crate::eval::ceiling`], [`CeilingParams::DEFAULT`]; the `ceiling` rows), computed from the
 //! same static segmentations and the simulator's true object poses. Row `t` averages the
 //! scenes that reached frame `t`; RISeg's share of the ceiling at push `t` is the ratio of
 //! the two rows' objects-found percentages. Timing is the
@@ -38,19 +38,19 @@ use riseg_core::{Config, Pose};
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    ceiling::{
+    cli::eval::{EvalReport, PushReport, write_ceiling_shares},
+    cli::generate::{MAX_ATTEMPTS, scene_seed},
+    eval::ceiling::{
         CeilingFrame, CeilingParams, MotionCeiling, moved, poses_by_label, same_motion,
         static_segments,
     },
-    episode::{EpisodeError, EpisodeFrame, Stop},
-    eval::{EvalReport, PushReport, write_ceiling_shares},
+    eval::metrics::{ImageMetrics, MetricsError, PushAverages, image_metrics},
     flow::{DisFlow, FlowError, FlowParams},
-    generate::{MAX_ATTEMPTS, scene_seed},
-    metrics::{ImageMetrics, MetricsError, PushAverages, image_metrics},
-    scene::ObjectPose,
+    io::scene::ObjectPose,
+    rig::episode::{EpisodeError, EpisodeFrame, Stop, run_episode},
+    rig::tracker::{StageTimes, TrackError, Tracker},
     segment::{ClassicalSegmenter, SegmentError, SegmenterParams},
     sim::{Layout, SimConfig, SimError, SimRig, SimScene},
-    tracker::{StageTimes, TrackError, Tracker},
 };
 
 /// Why a benchmark failed.
@@ -199,8 +199,12 @@ pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchEr
     // The previous frame's ground truth, static segmentation and poses.
     let mut previous: Option<PushStart> = None;
     let mut times = Vec::new();
-    let summary = rig
-        .run(&mut tracker, |f: &EpisodeFrame<'_>| {
+    let summary = run_episode(
+        &mut rig.camera,
+        &mut rig.robot,
+        &mut tracker,
+        &rig.setup,
+        |f: &EpisodeFrame<'_>| {
             let (s, r) = score_frame(f).map_err(|e| format!("scoring frame {}: {e}", f.t))?;
             static_metrics.push(s);
             riseg_metrics.push(r);
@@ -218,8 +222,9 @@ pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchEr
             previous = Some(start);
             times.push(f.observation.times);
             Ok(())
-        })
-        .map_err(|source| BenchError::Episode { scene, source })?;
+        },
+    )
+    .map_err(|source| BenchError::Episode { scene, source })?;
     Ok(SceneResult {
         scene,
         sim_seed,
@@ -501,7 +506,7 @@ mod tests {
     #![allow(clippy::unwrap_used, reason = "tests: a panic is the failure report")]
 
     use super::*;
-    use crate::ceiling::fixture::{H, W, at, row_of_three as truth, start};
+    use crate::eval::ceiling::fixture::{H, W, at, row_of_three as truth, start};
 
     /// The static segmentation merges 1 and 2 (segment 7) and finds 3 alone (segment 8).
     fn static_labels() -> Vec<u16> {
@@ -608,3 +613,171 @@ mod tests {
         assert_eq!(json["partial_push_share"][2], 0.5);
     }
 }
+
+// --- the `riseg bench` command ----------------------------------------------------
+
+mod command {
+    use std::path::PathBuf;
+
+    use crate::cli::bench::{self, BenchConfig};
+    use crate::flow::flo::write_atomic;
+    use crate::rig::episode::Stop;
+    use anyhow::Context as _;
+    use clap::Args;
+    use indicatif::{ProgressBar, ProgressStyle};
+
+    use crate::cli::LayoutArg;
+
+    pub(in crate::cli) const BENCH_HELP: &str = "\
+The paper's experiment (its Table 1) on simulated scenes: static segmenter, RISeg and the \
+motion ceiling.
+
+Each scene is a table with 4-6 touching objects (the scenes of `riseg gen` with the same \
+seed and --layout: loose by default, packed or mixed; see `riseg gen --help`). On each, \
+the loop of Algorithm 1 runs with the built-in segmenter and optical flow: FindAction \
+picks a push from the static heatmap, the simulated arm makes it, UpdateMask corrects the \
+mask; at most 3 pushes, fewer when no push qualifies. Every frame is scored against the \
+simulator's ground truth three times: the static segmentation of that frame, RISeg's \
+accumulated mask (at push 0 they are the same), and the motion ceiling.
+
+The motion ceiling is the best mask a method that starts from the static segmentation \
+and splits by motion can reach after the pushes so far: the ground truth, with two \
+touching objects (at most 2 background pixels apart along a row or column) merged when \
+every static segmentation so far put them in one segment (the segment covering most of \
+each object) and every push so far moved them alike (their true rigid motions agree \
+within 1 mm at either object's centre and 1.5 degrees); merges chain through touching \
+neighbours. RISeg is judged as a share of it.
+
+Columns (percent, averaged over the scenes that reached that push): overlap F, boundary \
+F, and the share of objects found with overlap F > 75 (see `riseg eval --help`). Below \
+the table, per push: RISeg / ceiling, the ratio of their objects-found columns; and how \
+many of the pushes made at that index moved part of a merged segment: some segment of \
+the static segmentation before the push holds two or more objects (an object belongs to \
+the segment covering most of it) and the push moved one of them (its true motion \
+exceeds 1 mm or 0.5 degree) but not another alike with it. Only such a push gives \
+motion something to split; moving a merged segment as one piece, or an object the static \
+segmenter already found alone, does not. Then the median milliseconds per step of each \
+stage: segment (static segmentation), flow (one thread), frames, twists, grouping, mask \
+(riseg-core's UpdateMask stages).
+
+The tables are the same for a seed on any machine and thread count; times vary.
+
+Example:
+  riseg bench --scenes 23 --seed 1 --json bench-seed1.json";
+
+    #[derive(Debug, Args)]
+    pub(in crate::cli) struct BenchArgs {
+        /// Number of scenes.
+        #[arg(long, default_value_t = 23)]
+        scenes: usize,
+        /// Dataset seed (scene i uses the simulator seed `riseg gen` derives from it).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Scene family (see `riseg gen --help`).
+        #[arg(long, value_enum, default_value_t = LayoutArg::Loose)]
+        layout: LayoutArg,
+        /// Also write the report as JSON: {"static": [ROW..], "riseg": [ROW..], "ceiling":
+        /// [ROW..], "partial_push_share": [..], "timing_ms": {..}}, ROW as in `riseg eval
+        /// --json`; partial_push_share has one entry per row: the fraction of the pushes made
+        /// at that push index (one per scene) that moved part of a merged segment (null for
+        /// push 0). Written atomically.
+        #[arg(long, value_name = "FILE")]
+        json: Option<PathBuf>,
+        /// Also print one line per scene, one entry per frame: objects found (F > 75) by the
+        /// static segmentation -> by RISeg, then by the motion ceiling, and the boundary F of
+        /// static -> RISeg ("3/4->4/4 ceil 4/4 b82->97", a leading "*" when the push to
+        /// that frame moved part of a merged segment); and why the episode stopped.
+        #[arg(long)]
+        per_scene: bool,
+    }
+
+    pub(in crate::cli) fn command(args: &BenchArgs) -> anyhow::Result<()> {
+        let cfg = BenchConfig {
+            layout: args.layout.layout(),
+            ..BenchConfig::new(args.scenes, args.seed)
+        };
+        let bar = ProgressBar::new(args.scenes as u64).with_style(
+            ProgressStyle::with_template(
+                "{bar:30} {pos}/{len} scenes  {elapsed}  eta {eta}  {msg}",
+            )
+            .context("progress bar template")?,
+        );
+        let (report, results) = bench::run_bench(&cfg, |r| {
+            bar.set_message(format!(
+                "scene {}: {} pushes, {:?}",
+                r.scene,
+                r.times.len().saturating_sub(1),
+                r.stop
+            ));
+            bar.inc(1);
+        })?;
+        bar.finish_and_clear();
+        let refused = results
+            .iter()
+            .filter(|r| matches!(r.stop, Stop::Refused(_)))
+            .count();
+        println!(
+            "{} {} scenes, seed {}; pushes per scene: {}{}",
+            args.scenes,
+            cfg.layout,
+            args.seed,
+            results
+                .iter()
+                .map(|r| (r.times.len() - 1).to_string())
+                .collect::<Vec<_>>()
+                .join(" "),
+            if refused > 0 {
+                format!("; {refused} episodes stopped on a refused push")
+            } else {
+                String::new()
+            }
+        );
+        if args.per_scene {
+            for r in &results {
+                let frames: Vec<String> = r
+                    .static_metrics
+                    .iter()
+                    .zip(&r.riseg_metrics)
+                    .zip(&r.ceiling_metrics)
+                    .enumerate()
+                    .map(|(t, ((s, m), c))| {
+                        // Push t is entry t - 1 of the partial pushes.
+                        let partial = t
+                            .checked_sub(1)
+                            .and_then(|i| r.partial_pushes.get(i))
+                            .is_some_and(|&p| p);
+                        format!(
+                            "{}{}/{}->{}/{} ceil {}/{} b{:.0}->{:.0}",
+                            if partial { "*" } else { "" },
+                            s.objects_detected,
+                            s.objects_gt,
+                            m.objects_detected,
+                            m.objects_gt,
+                            c.objects_detected,
+                            c.objects_gt,
+                            100.0 * s.boundary.f_measure,
+                            100.0 * m.boundary.f_measure
+                        )
+                    })
+                    .collect();
+                println!(
+                    "scene {:>3} (sim seed {:>20}): {}  [{:?}]",
+                    r.scene,
+                    r.sim_seed,
+                    frames.join(" | "),
+                    r.stop
+                );
+            }
+        }
+        print!("{report}");
+        if let Some(path) = &args.json {
+            let mut json = serde_json::to_vec_pretty(&report).context("encoding the report")?;
+            json.push(b'\n');
+            write_atomic(path, &json).with_context(|| format!("writing {}", path.display()))?;
+            eprintln!("wrote {}", path.display());
+        }
+        Ok(())
+    }
+}
+
+pub(in crate::cli) use command::*;

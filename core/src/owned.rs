@@ -1,8 +1,12 @@
-//! `Vec`-backed storage for riseg-core's caller-provided [`Workspace`] and
-//! [`ActionScratch`], sized once for a config and image size and reused across steps (no
-//! allocation per step).
+//! `Vec`-backed storage for the caller-provided [`Workspace`] and [`ActionScratch`], sized
+//! once for a config and image size and reused across steps (no allocation per step).
+//!
+//! Only with the `alloc` feature: the algorithm itself never allocates, this is the
+//! convenience for callers that have a heap (the host crate, tests, wasm).
 
-use riseg_core::{
+use alloc::{vec, vec::Vec};
+
+use crate::{
     Config, Pose, Real, Twist,
     action::{ActionScratch, ActionScratchLen},
     frames::{BodyFrame, FrameSample},
@@ -74,7 +78,7 @@ impl WorkspaceBuf {
         &self.len
     }
 
-    /// Lends the buffers to riseg-core.
+    /// Lends the buffers to [`crate::pipeline::update_mask`].
     pub fn view(&mut self) -> Workspace<'_> {
         Workspace {
             samples: &mut self.samples,
@@ -133,7 +137,7 @@ impl ActionBuf {
         }
     }
 
-    /// Lends the buffers to [`riseg_core::action::find_action`].
+    /// Lends the buffers to [`crate::action::find_action`].
     pub fn view(&mut self) -> ActionScratch<'_> {
         ActionScratch {
             certain: &mut self.certain,

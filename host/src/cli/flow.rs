@@ -1,0 +1,131 @@
+//! `riseg flow`: dense optical flow between two PNG files with the built-in DIS estimator.
+
+use std::path::{Path, PathBuf};
+
+use crate::flow::{
+    DisFlow, FlowEstimator as _, FlowParams, RgbView,
+    flo::{write_atomic, write_flo},
+    viz::flow_to_rgb,
+};
+use anyhow::{Context as _, bail};
+use clap::ValueEnum;
+
+pub(super) const FLOW_HELP: &str = "\
+Dense optical flow from FIRST.png to SECOND.png with the built-in DIS estimator \
+(coarse-to-fine patch inverse search, densification, variational refinement; no model \
+weights).
+
+The pixel at (x, y) of FIRST shows the same point as (x + dx, y + dy) of SECOND; dx, dy \
+are in pixels, y grows downwards. The images are read as PNG (any bit depth and colour \
+type; converted to 8-bit RGB, then to luma) and must have one size.
+
+OUTPUT is a Middlebury .flo file, little-endian: the float 202021.25 (bytes \"PIEH\"), \
+i32 width, i32 height, then width*height pairs of f32 (dx, dy), row-major. --viz also \
+writes the flow as an 8-bit RGB PNG on the Middlebury colour wheel: hue is the direction \
+(right red, down yellow, left cyan, up blue), saturation the length relative to the \
+largest vector; white is no motion. Outputs are written to a temporary file and renamed, \
+so they are never left half-written.
+
+Presets, fastest first (bench/flow.sh measures them against OpenCV's DIS):
+  ultrafast  stops at quarter resolution, no refinement: a few ms, coarse boundaries
+  fast       stops at half resolution, two refinement iterations per level
+  medium     fast with denser patches (default)
+  fine       half resolution plus a full-resolution polish: sharpest motion boundaries,
+             about twice the time of medium";
+
+#[derive(Debug, clap::Args)]
+pub(super) struct FlowArgs {
+    /// First image (PNG).
+    first: PathBuf,
+    /// Second image (PNG), same size as the first.
+    second: PathBuf,
+    /// Output flow, Middlebury .flo.
+    #[arg(short, long, value_name = "OUT.flo")]
+    output: PathBuf,
+    /// Also write a colour-wheel picture of the flow (PNG).
+    #[arg(long, value_name = "OUT.png")]
+    viz: Option<PathBuf>,
+    /// Speed/accuracy preset.
+    #[arg(long, value_enum, default_value_t = Preset::Medium)]
+    preset: Preset,
+    /// Worker threads; 0 uses every core.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+}
+
+/// `FlowParams` presets by name.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub(super) enum Preset {
+    Ultrafast,
+    Fast,
+    Medium,
+    Fine,
+}
+
+impl Preset {
+    const fn params(self) -> FlowParams {
+        match self {
+            Self::Ultrafast => FlowParams::ULTRAFAST,
+            Self::Fast => FlowParams::FAST,
+            Self::Medium => FlowParams::MEDIUM,
+            Self::Fine => FlowParams::FINE,
+        }
+    }
+}
+
+/// Decodes a PNG into 8-bit RGB; errors name the file.
+pub(super) fn read_rgb(path: &Path) -> anyhow::Result<image::RgbImage> {
+    let reader =
+        image::ImageReader::open(path).with_context(|| format!("reading {}", path.display()))?;
+    let img = reader
+        .with_guessed_format()
+        .with_context(|| format!("reading {}", path.display()))?
+        .decode()
+        .with_context(|| format!("decoding {} (expected a PNG image)", path.display()))?;
+    Ok(img.to_rgb8())
+}
+
+pub(super) fn view(img: &image::RgbImage) -> anyhow::Result<RgbView<'_>> {
+    Ok(RgbView::new(
+        img.width() as usize,
+        img.height() as usize,
+        img.as_raw(),
+    )?)
+}
+
+pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
+    let first = read_rgb(&args.first)?;
+    let second = read_rgb(&args.second)?;
+    if first.dimensions() != second.dimensions() {
+        bail!(
+            "{} is {}x{} but {} is {}x{}: the images must have one size",
+            args.first.display(),
+            first.width(),
+            first.height(),
+            args.second.display(),
+            second.width(),
+            second.height()
+        );
+    }
+    let estimator = DisFlow::new(args.preset.params())?.with_threads(args.threads)?;
+    let flow = estimator
+        .estimate(view(&first)?, view(&second)?)
+        .with_context(|| {
+            format!(
+                "flow from {} to {}",
+                args.first.display(),
+                args.second.display()
+            )
+        })?;
+    write_flo(&args.output, &flow)?;
+    if let Some(viz) = &args.viz {
+        let rgb = flow_to_rgb(&flow, None);
+        let img = image::RgbImage::from_raw(first.width(), first.height(), rgb)
+            .context("colour-wheel image size")?;
+        let mut png = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .with_context(|| format!("encoding {}", viz.display()))?;
+        write_atomic(viz, &png).with_context(|| format!("writing {}", viz.display()))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,121 @@
+//! `riseg segment`: one RGB-D frame through the built-in classical segmenter.
+
+use std::path::PathBuf;
+
+use crate::io::image::{Image, ImageIoError};
+use crate::io::scene::{self, SceneCamera};
+use crate::segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams, viz};
+use anyhow::{Context as _, bail};
+use clap::Args;
+
+#[derive(Debug, Args)]
+#[command(group(
+    clap::ArgGroup::new("input")
+        .required(true)
+        .args(["scene", "rgb"])
+))]
+pub(super) struct SegmentArgs {
+    /// Scene folder to read the frame from (with --frame): scene_camera.json,
+    /// rgb/NNNNNN.png, depth/NNNNNN.png.
+    #[arg(long, value_name = "DIR", requires = "frame")]
+    scene: Option<PathBuf>,
+    /// Frame number in the scene folder: 0 is the initial frame, t the frame after t
+    /// pushes.
+    #[arg(long, value_name = "T", requires = "scene")]
+    frame: Option<usize>,
+    /// Colour image: 8-bit RGB PNG (an alpha channel is ignored).
+    #[arg(long, value_name = "PNG", requires_all = ["depth", "camera"])]
+    rgb: Option<PathBuf>,
+    /// Depth image aligned to the colour image: 16-bit greyscale PNG in the camera file's
+    /// `depth_unit_m` units (usually millimetres), 0 = no reading.
+    #[arg(long, value_name = "PNG", requires_all = ["rgb", "camera"])]
+    depth: Option<PathBuf>,
+    /// Camera file (scene_camera.json): width, height, fx, fy, cx, cy (pixels) and
+    /// depth_unit_m (metres per depth unit).
+    #[arg(long, value_name = "JSON", requires_all = ["rgb", "depth"])]
+    camera: Option<PathBuf>,
+    /// Where to write the labels: 16-bit greyscale PNG, 0 = background.
+    #[arg(short = 'o', long = "output", value_name = "PNG")]
+    output: PathBuf,
+    /// Also write the heatmap: 8-bit greyscale PNG (paper thresholds l_u = 150, l_l = 120).
+    #[arg(long, value_name = "PNG")]
+    heatmap: Option<PathBuf>,
+    /// Also write a picture to check by eye: colour | labels | heatmap (grey < 120,
+    /// orange 120-149, green >= 150).
+    #[arg(long, value_name = "PNG")]
+    viz: Option<PathBuf>,
+    /// Seed of the table-plane RANSAC (same inputs and seed, same output).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+/// The camera, colour and depth files of `riseg segment`, from either input form.
+pub(super) fn segment_inputs(args: &SegmentArgs) -> anyhow::Result<(PathBuf, PathBuf, PathBuf)> {
+    match (
+        &args.scene,
+        args.frame,
+        &args.rgb,
+        &args.depth,
+        &args.camera,
+    ) {
+        (Some(dir), Some(t), None, None, None) => {
+            let (rgb, depth) = scene::frame_paths(dir, t);
+            Ok((dir.join(scene::CAMERA_FILE), rgb, depth))
+        }
+        (None, None, Some(rgb), Some(depth), Some(camera)) => {
+            Ok((camera.clone(), rgb.clone(), depth.clone()))
+        }
+        // clap's argument group and `requires` rule the other combinations out.
+        _ => bail!("give either --scene DIR --frame T, or --rgb, --depth and --camera"),
+    }
+}
+
+pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
+    let (camera_path, rgb_path, depth_path) = segment_inputs(args)?;
+    let camera = SceneCamera::read(&camera_path)?;
+    let (width, height) = (camera.width, camera.height);
+    let rgb = crate::io::image::read_rgb8(&rgb_path)?;
+    ImageIoError::expect_size(&rgb_path, &rgb, width, height)?;
+    let depth = crate::io::image::read_gray16(&depth_path)?;
+    ImageIoError::expect_size(&depth_path, &depth, width, height)?;
+
+    let depth_m: Vec<f32> = depth
+        .as_slice()
+        .iter()
+        .map(|&d| camera.depth_m(d))
+        .collect();
+    let (w, h) = (width as usize, height as usize);
+    let frame = RgbdFrame::new(w, h, rgb.as_slice(), &depth_m)?;
+    let mut segmenter = ClassicalSegmenter::new(SegmenterParams {
+        seed: args.seed,
+        ..SegmenterParams::default()
+    })?;
+    let out = segmenter
+        .segment_detailed(&frame, &camera.intrinsics())
+        .with_context(|| format!("segmenting {}", rgb_path.display()))?;
+    let seg = &out.segmentation;
+
+    crate::io::image::write_gray16(
+        &args.output,
+        &Image::from_vec(width, height, seg.labels.clone())?,
+    )?;
+    if let Some(path) = &args.heatmap {
+        crate::io::image::write_gray8(path, &Image::from_vec(width, height, seg.heatmap.clone())?)?;
+    }
+    if let Some(path) = &args.viz {
+        let picture = viz::side_by_side(rgb.as_slice(), seg);
+        crate::io::image::write_rgb8(path, &Image::from_vec(3 * width, height, picture)?)?;
+    }
+    let n = out.plane.normal;
+    println!(
+        "{} segments; table plane normal ({:.3}, {:.3}, {:.3}), camera {:.3} m above it; \
+         labels -> {}",
+        seg.segment_count(),
+        n.x,
+        n.y,
+        n.z,
+        out.plane.offset_m,
+        args.output.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,17 @@
+//! The loop of Algorithm 1 and its seams, in the order one push runs through them:
+//!
+//! 1. [`camera`]: the [`Camera`](camera::Camera) trait and [`SceneReplay`](camera::SceneReplay)
+//!    (a recorded scene played back); a [`CameraFrame`](camera::CameraFrame) is one RGB-D
+//!    capture.
+//! 2. [`tracker`]: static segmentation ([`crate::segment`]), optical flow ([`crate::flow`])
+//!    and riseg-core's UpdateMask, frame after frame.
+//! 3. [`episode`]: FindAction on the heatmap, depth and mask, then the robot: the loop.
+//! 4. [`robot`]: [`plan_push`](robot::plan_push) maps FindAction's push into the robot
+//!    frame and checks the arm's limits; the [`Robot`](robot::Robot) trait executes it.
+//!
+//! The simulator ([`crate::sim`]) is one camera and one robot; the loop never knows which.
+
+pub mod camera;
+pub mod episode;
+pub mod robot;
+pub mod tracker;

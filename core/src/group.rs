@@ -83,19 +83,31 @@ pub struct GroupScratchLen {
 }
 
 impl GroupScratchLen {
-    /// Lengths for up to `n` frames.
+    /// Lengths for up to `n` frames. `n·(n−1)/2` is computed without an intermediate that
+    /// could overflow (the even factor is halved first) and saturates at `usize::MAX`
+    /// where the true count does not fit (`n > 65536` on 32-bit targets): no buffer of that
+    /// size exists, so the length check then fails instead of wrapping to a short buffer.
     #[must_use]
     pub const fn for_frames(n: usize) -> Self {
+        let m = n.saturating_sub(1);
+        let pair_bin = if n.is_multiple_of(2) {
+            (n / 2).saturating_mul(m)
+        } else {
+            n.saturating_mul(m / 2)
+        };
         Self {
-            pair_bin: n * n.saturating_sub(1) / 2,
+            pair_bin,
             per_frame: n,
         }
     }
 
-    /// Bytes the scratch takes.
+    /// Bytes the scratch takes (saturating): `pair_bin` bytes, then `parent`, `links` and
+    /// `attach` of `per_frame` `u32`s each.
     #[must_use]
     pub const fn bytes(&self) -> usize {
-        self.pair_bin + 12 * self.per_frame
+        self.pair_bin
+            .saturating_mul(size_of::<u8>())
+            .saturating_add(self.per_frame.saturating_mul(3 * size_of::<u32>()))
     }
 }
 
@@ -609,6 +621,26 @@ mod tests {
 
     use super::*;
     use crate::{Pose, frames::BodyFrame, rng::Pcg32};
+
+    #[test]
+    fn scratch_len_is_exact_or_saturates_never_wraps() {
+        for n in 0..200usize {
+            assert_eq!(
+                GroupScratchLen::for_frames(n).pair_bin,
+                n * n.saturating_sub(1) / 2
+            );
+        }
+        // n·(n−1) alone overflows u32 here; the count itself fits u64.
+        assert_eq!(
+            GroupScratchLen::for_frames(100_000).pair_bin as u64,
+            4_999_950_000
+        );
+        for n in [usize::MAX, usize::MAX - 1] {
+            let len = GroupScratchLen::for_frames(n);
+            assert_eq!(len.pair_bin, usize::MAX);
+            assert_eq!(len.bytes(), usize::MAX);
+        }
+    }
 
     /// Roughly normal noise (Irwin-Hall with 12 uniforms), standard deviation `sigma`.
     fn noise(rng: &mut Pcg32, sigma: Real) -> Vector3<Real> {

@@ -136,10 +136,13 @@ impl MaskScratchLen {
     /// Bytes the scratch takes.
     #[must_use]
     pub const fn bytes(&self) -> usize {
-        self.pixels * (4 * 4 + 2)
-            + self.segments * 12
-            + self.seeds * 12
-            + self.motions * core::mem::size_of::<Pose>()
+        // key, source, segment, queue (u32) and claim (u16) per pixel; size, target and
+        // key (u32) per segment.
+        self.pixels
+            .saturating_mul(4 * size_of::<u32>() + size_of::<u16>())
+            .saturating_add(self.segments.saturating_mul(3 * size_of::<u32>()))
+            .saturating_add(self.seeds.saturating_mul(size_of::<[u32; 3]>()))
+            .saturating_add(self.motions.saturating_mul(size_of::<Pose>()))
     }
 }
 

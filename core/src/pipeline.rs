@@ -103,14 +103,16 @@ impl WorkspaceLen {
     /// Bytes the whole workspace takes.
     #[must_use]
     pub const fn bytes(&self) -> usize {
+        // samples, frames, twists, frame_labels and frame_group (u16 each), groups.
+        let per_frame = size_of::<FrameSample>()
+            + size_of::<BodyFrame>()
+            + size_of::<Twist>()
+            + 2 * size_of::<u16>()
+            + size_of::<GroupInfo>();
         self.frames
-            * (core::mem::size_of::<FrameSample>()
-                + core::mem::size_of::<BodyFrame>()
-                + core::mem::size_of::<Twist>()
-                + 4
-                + core::mem::size_of::<GroupInfo>())
-            + self.group.bytes()
-            + self.mask.bytes()
+            .saturating_mul(per_frame)
+            .saturating_add(self.group.bytes())
+            .saturating_add(self.mask.bytes())
     }
 }
 
@@ -280,93 +282,12 @@ pub(crate) mod tests {
     use super::*;
     use crate::{
         Pose,
+        owned::WorkspaceBuf,
         synth::{
             SynthBox,
             fixture::{Rendered, box_at, render, spin_about},
         },
     };
-
-    /// Vec-backed workspace for tests.
-    pub(crate) struct OwnedWorkspace {
-        samples: Vec<FrameSample>,
-        frames: Vec<BodyFrame>,
-        twists: Vec<Twist>,
-        frame_labels: Vec<u16>,
-        frame_group: Vec<u16>,
-        groups: Vec<GroupInfo>,
-        pair_bin: Vec<u8>,
-        parent: Vec<u32>,
-        links: Vec<u32>,
-        attach: Vec<u32>,
-        key: Vec<u32>,
-        source: Vec<u32>,
-        segment: Vec<u32>,
-        queue: Vec<u32>,
-        claim: Vec<u16>,
-        segment_size: Vec<u32>,
-        segment_target: Vec<u32>,
-        segment_key: Vec<u32>,
-        seeds: Vec<[u32; 3]>,
-        motions: Vec<Pose>,
-    }
-
-    impl OwnedWorkspace {
-        pub(crate) fn new(cfg: &Config, width: usize, height: usize) -> Self {
-            let len = WorkspaceLen::for_config(cfg, width, height);
-            let (n, px, seg) = (len.frames, len.mask.pixels, len.mask.segments);
-            Self {
-                samples: vec![FrameSample::EMPTY; n],
-                frames: vec![BodyFrame::EMPTY; n],
-                twists: vec![Twist::ZERO; n],
-                frame_labels: vec![0; n],
-                frame_group: vec![0; n],
-                groups: vec![GroupInfo::default(); n],
-                pair_bin: vec![0; len.group.pair_bin],
-                parent: vec![0; n],
-                links: vec![0; n],
-                attach: vec![0; n],
-                key: vec![0; px],
-                source: vec![0; px],
-                segment: vec![0; px],
-                queue: vec![0; px],
-                claim: vec![0; px],
-                segment_size: vec![0; seg],
-                segment_target: vec![0; seg],
-                segment_key: vec![0; seg],
-                seeds: vec![[0; 3]; len.mask.seeds],
-                motions: vec![Pose::identity(); len.mask.motions],
-            }
-        }
-
-        pub(crate) fn view(&mut self) -> Workspace<'_> {
-            Workspace {
-                samples: &mut self.samples,
-                frames: &mut self.frames,
-                twists: &mut self.twists,
-                frame_labels: &mut self.frame_labels,
-                frame_group: &mut self.frame_group,
-                groups: &mut self.groups,
-                group: GroupScratch {
-                    pair_bin: &mut self.pair_bin,
-                    parent: &mut self.parent,
-                    links: &mut self.links,
-                    attach: &mut self.attach,
-                },
-                mask: MaskScratch {
-                    key: &mut self.key,
-                    source: &mut self.source,
-                    segment: &mut self.segment,
-                    queue: &mut self.queue,
-                    claim: &mut self.claim,
-                    segment_size: &mut self.segment_size,
-                    segment_target: &mut self.segment_target,
-                    segment_key: &mut self.segment_key,
-                    seeds: &mut self.seeds,
-                    motions: &mut self.motions,
-                },
-            }
-        }
-    }
 
     /// Runs one step from the accumulated mask `labels_t` and the static mask `static_t1`
     /// over `r`'s depth and flow; returns the corrected mask.
@@ -386,7 +307,7 @@ pub(crate) mod tests {
             r.intrinsics,
         )
         .unwrap();
-        let mut ws = OwnedWorkspace::new(cfg, w, h);
+        let mut ws = WorkspaceBuf::new(cfg, w, h);
         let mut out = vec![0u16; w * h];
         let static_t1 = ImageView::packed(w, h, static_t1).unwrap();
         let report =
@@ -519,7 +440,7 @@ pub(crate) mod tests {
             r.intrinsics,
         )
         .unwrap();
-        let mut ws = OwnedWorkspace::new(&cfg, w, h);
+        let mut ws = WorkspaceBuf::new(&cfg, w, h);
         let mut view = ws.view();
         let set = create_frames(&input, &cfg, view.samples, view.frames).unwrap();
         let frames = &view.frames[..set.count];
@@ -812,8 +733,9 @@ pub(crate) mod tests {
     fn short_workspace_is_an_error_before_anything_is_written() {
         let r = render(&row(&[Pose::identity()]), 64, 48);
         let cfg = Config::PAPER;
-        let mut ws = OwnedWorkspace::new(&cfg, 64, 48);
-        ws.queue.truncate(10);
+        let mut buf = WorkspaceBuf::new(&cfg, 64, 48);
+        let mut ws = buf.view();
+        ws.mask.queue = &mut core::mem::take(&mut ws.mask.queue)[..10];
         let input = MotionInput::new(
             ImageView::packed(64, 48, &r.labels_t).unwrap(),
             ImageView::packed(64, 48, &r.depth_t).unwrap(),
@@ -824,7 +746,7 @@ pub(crate) mod tests {
         .unwrap();
         let mut out = vec![7u16; 64 * 48];
         let static_t1 = ImageView::packed(64, 48, &r.labels_t1).unwrap();
-        let err = update_mask(&input, &static_t1, &cfg, &mut ws.view(), &mut out);
+        let err = update_mask(&input, &static_t1, &cfg, &mut ws, &mut out);
         assert!(matches!(
             err,
             Err(Error::BufferTooSmall {

@@ -13,16 +13,16 @@ use core::cell::RefCell;
 use std::{collections::BTreeMap, rc::Rc};
 
 use riseg::{
-    camera::{Camera, CameraError, CameraFrame},
-    ceiling::{CeilingFrame, CeilingParams, MotionCeiling},
-    episode::run_episode,
+    eval::ceiling::{CeilingFrame, CeilingParams, MotionCeiling},
+    eval::metrics::image_metrics,
     flow::{DisFlow, Flow, FlowError, FlowEstimator, FlowParams, RgbView},
-    imageio::{DepthImage, Gray16Image},
-    metrics::image_metrics,
-    scene::ObjectPose,
+    io::image::{DepthImage, Gray16Image},
+    io::scene::ObjectPose,
+    rig::camera::{Camera, CameraError, CameraFrame},
+    rig::episode::run_episode,
+    rig::tracker::Tracker,
     segment::{ClassicalSegmenter, SegmenterParams},
     sim::{Layout, SimCamera, SimConfig, SimRig, SimScene, ground_truth_flow},
-    tracker::Tracker,
 };
 use riseg_core::Config;
 
@@ -140,8 +140,8 @@ fn one(
         cfg,
     )?;
     let world_from_camera = rig.setup.robot_from_camera;
-    let mut prev: Option<(Vec<u16>, Vec<riseg::scene::ObjectPose>)> = None;
-    let mut prev_frame: Option<riseg::camera::CameraFrame> = None;
+    let mut prev: Option<(Vec<u16>, Vec<ObjectPose>)> = None;
+    let mut prev_frame: Option<CameraFrame> = None;
     run_episode(&mut camera, &mut robot, &mut tracker, &rig.setup, |f| {
         let truth = f.frame.truth.as_ref().ok_or("truth")?.as_slice().to_vec();
         let poses = f.frame.truth_poses.clone().ok_or("poses")?;
@@ -288,7 +288,7 @@ fn one(
                     if g.is_none() || objs.len() != 2 {
                         continue;
                     }
-                    let member = |gf: &riseg::tracker::GroupedFrame, l: Option<u16>| {
+                    let member = |gf: &riseg::rig::tracker::GroupedFrame, l: Option<u16>| {
                         let [u, v] = gf.frame.px_t[0];
                         gf.group == *g
                             && l.is_none_or(|l| prev_truth[v as usize * w + u as usize] == l)

@@ -2,11 +2,8 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::flow::{
-    DisFlow, FlowEstimator as _, FlowParams, RgbView,
-    flo::{write_atomic, write_flo},
-    viz::flow_to_rgb,
-};
+use crate::flow::{DisFlow, FlowEstimator as _, FlowParams, RgbView, viz::flow_to_rgb};
+use crate::io::image::{write_atomic, write_flo};
 use anyhow::{Context as _, bail};
 use clap::ValueEnum;
 
@@ -117,7 +114,7 @@ pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
                 args.second.display()
             )
         })?;
-    write_flo(&args.output, &flow)?;
+    write_flo(&args.output, &flow.to_image()?)?;
     if let Some(viz) = &args.viz {
         let rgb = flow_to_rgb(&flow, None);
         let img = image::RgbImage::from_raw(first.width(), first.height(), rgb)

@@ -21,7 +21,10 @@
 use anyhow::{Context as _, Result};
 use clap::Parser;
 use riseg::flow::{DisFlow, Flow, FlowEstimator as _, FlowParams, RgbView};
-use riseg::io::image::{read_flo, write_atomic, write_flo};
+use riseg::io::{
+    image::{read_flo, write_flo},
+    write_atomic,
+};
 use riseg::testkit::flow::FlowScene;
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -620,7 +620,7 @@ mod command {
     use std::path::PathBuf;
 
     use crate::cli::bench::{self, BenchConfig};
-    use crate::io::image::write_atomic;
+    use crate::io::write_atomic;
     use crate::rig::episode::Stop;
     use anyhow::Context as _;
     use clap::Args;

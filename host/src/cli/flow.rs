@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::flow::{DisFlow, FlowEstimator as _, FlowParams, RgbView, viz::flow_to_rgb};
-use crate::io::image::{write_atomic, write_flo};
+use crate::io::{image::write_flo, write_atomic};
 use anyhow::{Context as _, bail};
 use clap::ValueEnum;
 

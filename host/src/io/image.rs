@@ -10,19 +10,20 @@
 //!   Readers never panic on any file content.
 //! - Every writer is atomic: the bytes go to a temporary file in the destination's folder,
 //!   which is flushed to disk and then renamed over the destination, so a reader sees either
-//!   the old file, or the complete new one, never half a file ([`write_atomic`]).
+//!   the old file, or the complete new one, never half a file ([`super::write_atomic`]).
 //! - Encoding is deterministic: the same image gives the same bytes.
 //!
 //! `.flo` (Middlebury): little-endian `f32` magic `202021.25` (the bytes `PIEH`), `i32`
 //! width, `i32` height, then `width·height` pairs of `f32` `(dx, dy)` in row-major order.
 //! Flow is in pixels: the pixel `(x, y)` of the first image moves to `(x + dx, y + dy)`.
 
-use core::sync::atomic::{AtomicU64, Ordering};
 use std::{
     fs,
-    io::{self, BufReader, Write as _},
+    io::{self, BufReader},
     path::{Path, PathBuf},
 };
+
+use super::write_atomic;
 
 use image::{
     DynamicImage, ExtendedColorType, ImageEncoder,
@@ -238,39 +239,9 @@ impl ImageIoError {
     }
 }
 
-/// A hidden name beside `name` for a temporary file or folder, unique within this machine's
-/// processes and this process's threads: `.{name}.{kind}-{pid}-{n}`.
-pub(crate) fn temp_name(name: &str, kind: &str) -> String {
-    static NEXT: AtomicU64 = AtomicU64::new(0);
-    let n = NEXT.fetch_add(1, Ordering::Relaxed);
-    format!(".{name}.{kind}-{}-{n}", std::process::id())
-}
-
-/// Writes `bytes` to `path` atomically: a temporary file in the same folder, flushed to
-/// disk, then renamed over `path`. On error the temporary file is removed.
-///
-/// # Errors
-/// [`ImageProblem::Io`] naming `path` if the folder is missing or not writable.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ImageIoError> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .map_or_else(|| "unnamed".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = dir.join(temp_name(&name, "tmp"));
-    let result = (|| {
-        let mut file = fs::File::create(&tmp)?;
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        fs::rename(&tmp, path)
-    })();
-    result.map_err(|e| {
-        // Best effort: the temporary file may not exist if creating it failed.
-        let _ = fs::remove_file(&tmp);
-        ImageIoError::new(path, ImageProblem::Io(e))
-    })
+/// [`write_atomic`] with an error naming `path`.
+fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ImageIoError> {
+    write_atomic(path, bytes).map_err(|e| ImageIoError::new(path, ImageProblem::Io(e)))
 }
 
 fn read_bytes(path: &Path) -> Result<Vec<u8>, ImageIoError> {
@@ -442,7 +413,7 @@ pub fn write_rgb8(path: &Path, image: &RgbImage) -> Result<(), ImageIoError> {
         image.height,
         ExtendedColorType::Rgb8,
     )?;
-    write_atomic(path, &png)
+    write_file(path, &png)
 }
 
 /// Writes a 16-bit greyscale PNG atomically.
@@ -459,7 +430,7 @@ pub fn write_gray16(path: &Path, image: &Gray16Image) -> Result<(), ImageIoError
         image.height,
         ExtendedColorType::L16,
     )?;
-    write_atomic(path, &png)
+    write_file(path, &png)
 }
 
 /// Writes an 8-bit greyscale PNG atomically.
@@ -474,7 +445,7 @@ pub fn write_gray8(path: &Path, image: &Gray8Image) -> Result<(), ImageIoError> 
         image.height,
         ExtendedColorType::L8,
     )?;
-    write_atomic(path, &png)
+    write_file(path, &png)
 }
 
 /// The `.flo` magic number (the bytes `PIEH` read as a little-endian `f32`).
@@ -621,7 +592,7 @@ pub fn read_flo(path: &Path) -> Result<FlowImage, ImageIoError> {
 pub fn write_flo(path: &Path, flow: &FlowImage) -> Result<(), ImageIoError> {
     let bytes =
         encode_flo(flow).map_err(|e| ImageIoError::new(path, ImageProblem::CorruptFlo(e)))?;
-    write_atomic(path, &bytes)
+    write_file(path, &bytes)
 }
 
 #[cfg(test)]

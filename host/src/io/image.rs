@@ -319,6 +319,23 @@ pub fn read_rgb8(path: &Path) -> Result<RgbImage, ImageIoError> {
     from_decoded(path, width, height, data)
 }
 
+/// Reads a PNG of any colour type and bit depth converted to 8-bit RGB: grey is repeated
+/// in the three channels, alpha is dropped, 16-bit samples are scaled to 8 bits. For
+/// pictures from other tools (`riseg flow`); scene frames use the strict [`read_rgb8`].
+///
+/// # Errors
+/// Missing file, I/O error, or corrupt PNG.
+pub fn read_png_as_rgb8(path: &Path) -> Result<RgbImage, ImageIoError> {
+    let rgb = decode_png(path)?.into_rgb8();
+    let (width, height) = rgb.dimensions();
+    let data = rgb
+        .as_raw()
+        .chunks_exact(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
+    from_decoded(path, width, height, data)
+}
+
 /// Reads a 16-bit greyscale PNG (depth, labels). Any other bit depth is an error, so an
 /// 8-bit depth image, whose values cannot hold millimetres, is refused.
 ///
@@ -720,6 +737,29 @@ mod tests {
             let m = message(read_flo(&flo).unwrap_err());
             assert!(m.contains("bad.flo") && m.contains(needle), "{m}");
         }
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn any_png_reads_as_rgb8() {
+        let dir = temp_dir("as-rgb8");
+        let rgb = RgbImage::from_fn(3, 2, |x, y| [x as u8, y as u8, 7]);
+        write_rgb8(&dir.join("c.png"), &rgb).unwrap();
+        assert_eq!(read_png_as_rgb8(&dir.join("c.png")).unwrap(), rgb);
+        let grey = Gray8Image::from_fn(3, 2, |x, y| (10 * x + y) as u8);
+        write_gray8(&dir.join("g.png"), &grey).unwrap();
+        assert_eq!(
+            read_png_as_rgb8(&dir.join("g.png")).unwrap(),
+            grey.map(|&v| [v; 3])
+        );
+        let deep = Gray16Image::from_fn(1, 1, |_, _| 0xff00);
+        write_gray16(&dir.join("d.png"), &deep).unwrap();
+        assert_eq!(
+            read_png_as_rgb8(&dir.join("d.png")).unwrap().as_slice(),
+            [[0xfe; 3]]
+        );
+        let e = read_png_as_rgb8(&dir.join("missing.png")).unwrap_err();
+        assert!(matches!(e.problem, ImageProblem::Missing));
         fs::remove_dir_all(&dir).unwrap();
     }
 

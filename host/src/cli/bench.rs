@@ -247,8 +247,10 @@ struct PushStart {
 
 impl PushStart {
     fn of(f: &EpisodeFrame<'_>) -> Result<Self, String> {
-        let frame =
-            CeilingFrame::new(f.frame, &f.observation.static_seg.labels).ok_or_else(|| {
+        let frame = f
+            .frame
+            .ceiling_frame(&f.observation.static_seg.labels)
+            .ok_or_else(|| {
                 format!(
                     "frame {}: the camera gave no ground-truth labels or no object poses",
                     f.t
@@ -330,7 +332,9 @@ fn score_ceiling(
     ceiling: &mut MotionCeiling,
     f: &EpisodeFrame<'_>,
 ) -> Result<ImageMetrics, String> {
-    let frame = CeilingFrame::new(f.frame, &f.observation.static_seg.labels)
+    let frame = f
+        .frame
+        .ceiling_frame(&f.observation.static_seg.labels)
         .ok_or("the camera gave no ground-truth labels or no object poses")?;
     let mask = ceiling.next_frame(&frame).map_err(|e| e.to_string())?;
     image_metrics(frame.truth, &mask, frame.width, frame.height).map_err(|e| e.to_string())

@@ -42,7 +42,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    eval::ceiling::{CeilingError, CeilingFrame, CeilingParams, MotionCeiling},
+    eval::ceiling::{CeilingError, CeilingParams, MotionCeiling},
     eval::metrics::{self, ImageMetrics, MetricsError, MetricsRow, Prf, PushAverages},
     io::scene::{LABEL_DIR, POSES_FILE, Scene, SceneError, frame_file_name, list_scenes},
     io::write_atomic,
@@ -548,7 +548,7 @@ pub fn evaluate_ceiling(
                     frame: t,
                     source,
                 })?;
-            let Some(input) = CeilingFrame::new(&frame, &static_seg.labels) else {
+            let Some(input) = frame.ceiling_frame(&static_seg.labels) else {
                 return Err(EvalError::NoGroundTruth { scene: dir.clone() });
             };
             let mask = ceiling

@@ -20,8 +20,8 @@ pub(crate) fn temp_name(name: &str, kind: &str) -> String {
     format!(".{name}.{kind}-{}-{n}", std::process::id())
 }
 
-/// Writes `bytes` to `path` atomically: a temporary file in the same folder
-/// ([`temp_name`]), flushed to disk, then renamed over `path`, so a reader sees the old
+/// Writes `bytes` to `path` atomically: a hidden temporary file in the same folder
+/// (`.{name}.tmp-{pid}-{n}`), flushed to disk, then renamed over `path`, so a reader sees the old
 /// file or the whole new one, never half a file. On error the temporary file is removed.
 /// Every file riseg writes goes through here.
 ///

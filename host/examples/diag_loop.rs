@@ -13,7 +13,7 @@ use core::cell::RefCell;
 use std::{collections::BTreeMap, rc::Rc};
 
 use riseg::{
-    eval::ceiling::{CeilingFrame, CeilingParams, MotionCeiling},
+    eval::ceiling::{CeilingParams, MotionCeiling},
     eval::metrics::image_metrics,
     flow::{DisFlow, Flow, FlowError, FlowEstimator, FlowParams, RgbView},
     io::image::{DepthImage, Gray16Image},
@@ -146,7 +146,10 @@ fn one(
         let truth = f.frame.truth.as_ref().ok_or("truth")?.as_slice().to_vec();
         let poses = f.frame.truth_poses.clone().ok_or("poses")?;
         let (w, h) = f.frame.size();
-        let cf = CeilingFrame::new(f.frame, &f.observation.static_seg.labels).ok_or("ceil")?;
+        let cf = f
+            .frame
+            .ceiling_frame(&f.observation.static_seg.labels)
+            .ok_or("ceil")?;
         let cmask = ceiling.next_frame(&cf).map_err(|e| e.to_string())?;
         let cm = image_metrics(&truth, &cmask, w, h).map_err(|e| e.to_string())?;
         let rm = image_metrics(&truth, &f.observation.mask, w, h).map_err(|e| e.to_string())?;

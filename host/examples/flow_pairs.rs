@@ -20,9 +20,10 @@
 
 use anyhow::{Context as _, Result};
 use clap::Parser;
-use riseg::flow::{
-    DisFlow, Flow, FlowEstimator as _, FlowParams, RgbView,
-    flo::{read_flo, write_atomic, write_flo},
+use riseg::flow::{DisFlow, Flow, FlowEstimator as _, FlowParams, RgbView};
+use riseg::io::{
+    image::{read_flo, write_flo},
+    write_atomic,
 };
 use riseg::testkit::flow::FlowScene;
 use std::path::{Path, PathBuf};
@@ -164,7 +165,7 @@ fn load(dir: &Path, name: &str) -> Result<Pair> {
         name: name.to_owned(),
         first: rgb("a")?,
         second: rgb("b")?,
-        truth: read_flo(&dir.join(format!("{name}_gt.flo")))?,
+        truth: Flow::from_image(read_flo(&dir.join(format!("{name}_gt.flo")))?),
         moving: mask.as_raw().iter().map(|&v| v > 127).collect(),
     })
 }
@@ -207,7 +208,10 @@ fn main() -> Result<()> {
             moving,
             false,
         )?;
-        write_flo(&args.dir.join(format!("{name}_gt.flo")), &p.flow)?;
+        write_flo(
+            &args.dir.join(format!("{name}_gt.flo")),
+            &p.flow.to_image()?,
+        )?;
         pairs.push(load(&args.dir, &name)?);
     }
     for preset in &args.presets {

@@ -1,7 +1,8 @@
 //! `riseg flow` end to end: a generated pair in, a .flo and a colour-wheel PNG out, and
 //! the errors for bad input name the file.
 
-use riseg::flow::flo::read_flo;
+use riseg::flow::Flow;
+use riseg::io::image::read_flo;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -36,7 +37,7 @@ fn writes_flo_and_viz() {
     let (out, viz) = (d.join("out.flo"), d.join("viz.png"));
     let o = riseg(&[&a, &b, Path::new("-o"), &out, Path::new("--viz"), &viz]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let flow = read_flo(&out).unwrap();
+    let flow = Flow::from_image(read_flo(&out).unwrap());
     assert_eq!((flow.width(), flow.height()), (160, 120));
     let epe = flow.mean_epe(&pair.flow, Some(&pair.interior)).unwrap();
     assert!(epe < 0.5, "EPE {epe}");

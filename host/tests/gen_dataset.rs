@@ -16,10 +16,10 @@ use std::{
 };
 
 use riseg::{
-    cli::generate::{GeneratedScene, generate_scene, scene_dir_name, scene_seed, write_dataset},
+    cli::generate::{GeneratedScene, generate_scene, scene_dir_name, write_dataset},
     io::image::{FlowImage, Gray16Image, RgbImage},
     io::scene::{ObjectPose, Scene, list_scenes},
-    sim::{Layout, TABLE_HALF_EXTENTS_M},
+    sim::{Layout, TABLE_HALF_EXTENTS_M, scene_seed},
 };
 
 const SCENES: usize = 3;

@@ -39,7 +39,6 @@ use serde::{Deserialize, Serialize};
 
 use crate::{
     cli::eval::{EvalReport, PushReport, write_ceiling_shares},
-    cli::generate::{MAX_ATTEMPTS, scene_seed},
     eval::ceiling::{
         CeilingFrame, CeilingParams, MotionCeiling, moved, poses_by_label, same_motion,
         static_segments,
@@ -50,7 +49,7 @@ use crate::{
     rig::episode::{EpisodeError, EpisodeFrame, Stop, run_episode},
     rig::tracker::{StageTimes, TrackError, Tracker},
     segment::{ClassicalSegmenter, SegmentError, SegmenterParams},
-    sim::{Layout, SimConfig, SimError, SimRig, SimScene},
+    sim::{Layout, SimConfig, SimError, SimRig, SimScene, first_usable_seed, scene_seed},
 };
 
 /// Why a benchmark failed.
@@ -248,8 +247,10 @@ struct PushStart {
 
 impl PushStart {
     fn of(f: &EpisodeFrame<'_>) -> Result<Self, String> {
-        let frame =
-            CeilingFrame::new(f.frame, &f.observation.static_seg.labels).ok_or_else(|| {
+        let frame = f
+            .frame
+            .ceiling_frame(&f.observation.static_seg.labels)
+            .ok_or_else(|| {
                 format!(
                     "frame {}: the camera gave no ground-truth labels or no object poses",
                     f.t
@@ -331,30 +332,24 @@ fn score_ceiling(
     ceiling: &mut MotionCeiling,
     f: &EpisodeFrame<'_>,
 ) -> Result<ImageMetrics, String> {
-    let frame = CeilingFrame::new(f.frame, &f.observation.static_seg.labels)
+    let frame = f
+        .frame
+        .ceiling_frame(&f.observation.static_seg.labels)
         .ok_or("the camera gave no ground-truth labels or no object poses")?;
     let mask = ceiling.next_frame(&frame).map_err(|e| e.to_string())?;
     image_metrics(frame.truth, &mask, frame.width, frame.height).map_err(|e| e.to_string())
 }
 
-/// The first attempt seed from `seed` (as `riseg gen` derives them) whose objects the
-/// simulator can place in a scene of `layout`.
+/// The first attempt seed from `seed` ([`first_usable_seed`], as `riseg gen` derives them)
+/// whose objects the simulator can place in a scene of `layout`.
 fn place_scene(seed: u64, layout: Layout) -> Result<(SimScene, u64), SimError> {
     let config = SimConfig::D415.with_layout(layout);
-    let mut last = None;
-    for attempt in 0..MAX_ATTEMPTS {
-        let attempt_seed = if attempt == 0 {
-            seed
-        } else {
-            scene_seed(seed, attempt as usize)
-        };
-        match SimScene::with_config(attempt_seed, config) {
-            Ok(sim) => return Ok((sim, attempt_seed)),
-            Err(e @ SimError::Placement { .. }) => last = Some(e),
-            Err(e) => return Err(e),
-        }
-    }
-    Err(last.unwrap_or(SimError::BadPush("no attempt was made".into())))
+    let placed = first_usable_seed(seed, |s| match SimScene::with_config(s, config) {
+        Ok(sim) => Ok(Ok(sim)),
+        Err(e @ SimError::Placement { .. }) => Ok(Err(e)),
+        Err(e) => Err(e),
+    })?;
+    placed.map(|found| (found.value, found.seed))
 }
 
 /// Runs every scene (in parallel) and builds the report; `on_scene` is called as each
@@ -620,7 +615,7 @@ mod command {
     use std::path::PathBuf;
 
     use crate::cli::bench::{self, BenchConfig};
-    use crate::flow::flo::write_atomic;
+    use crate::io::write_atomic;
     use crate::rig::episode::Stop;
     use anyhow::Context as _;
     use clap::Args;

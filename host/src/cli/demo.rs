@@ -29,7 +29,10 @@ use crate::{
     draw::{Clip, arrow, dot, label_colour, line, overlay_labels},
     eval::metrics::PushAverages,
     flow::{DisFlow, FlowParams, viz::flow_to_rgb},
-    io::image::{RgbImage, write_atomic, write_rgb8},
+    io::{
+        image::{RgbImage, write_rgb8},
+        write_atomic,
+    },
     rig::episode::{Decision, EpisodeFrame, Stop, run_episode},
     rig::robot::PushCommand,
     rig::tracker::{Observation, Tracker},

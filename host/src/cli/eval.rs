@@ -36,15 +36,16 @@
 
 use core::fmt;
 use std::fs;
-use std::io::{self, Write as _};
+use std::io;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    eval::ceiling::{CeilingError, CeilingFrame, CeilingParams, MotionCeiling},
+    eval::ceiling::{CeilingError, CeilingParams, MotionCeiling},
     eval::metrics::{self, ImageMetrics, MetricsError, MetricsRow, Prf, PushAverages},
     io::scene::{LABEL_DIR, POSES_FILE, Scene, SceneError, frame_file_name, list_scenes},
+    io::write_atomic,
     rig::camera::SceneReplay,
     segment::{SegmentError, StaticSegmenter},
 };
@@ -406,30 +407,8 @@ impl EvalReport {
         };
         let mut json = serde_json::to_vec_pretty(self).map_err(|e| io_error(e.into()))?;
         json.push(b'\n');
-        write_atomically(path, &json).map_err(io_error)
+        write_atomic(path, &json).map_err(io_error)
     }
-}
-
-/// Writes `bytes` to a temporary sibling of `path`, syncs it, and renames it to `path`.
-fn write_atomically(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    let name = path.file_name().ok_or_else(|| {
-        io::Error::new(io::ErrorKind::InvalidInput, "the path does not name a file")
-    })?;
-    let temp = path.with_file_name(format!(
-        ".{}.tmp-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let written = fs::File::create(&temp).and_then(|mut file| {
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        fs::rename(&temp, path)
-    });
-    if written.is_err() {
-        // Best effort: the temporary may not exist; the write error is what matters.
-        let _ = fs::remove_file(&temp);
-    }
-    written
 }
 
 impl fmt::Display for EvalReport {
@@ -569,7 +548,7 @@ pub fn evaluate_ceiling(
                     frame: t,
                     source,
                 })?;
-            let Some(input) = CeilingFrame::new(&frame, &static_seg.labels) else {
+            let Some(input) = frame.ceiling_frame(&static_seg.labels) else {
                 return Err(EvalError::NoGroundTruth { scene: dir.clone() });
             };
             let mask = ceiling

@@ -1,12 +1,9 @@
 //! `riseg flow`: dense optical flow between two PNG files with the built-in DIS estimator.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use crate::flow::{
-    DisFlow, FlowEstimator as _, FlowParams, RgbView,
-    flo::{write_atomic, write_flo},
-    viz::flow_to_rgb,
-};
+use crate::flow::{DisFlow, FlowEstimator as _, FlowParams, RgbView, viz::flow_to_rgb};
+use crate::io::image::{RgbImage, read_png_as_rgb8, write_flo, write_rgb8};
 use anyhow::{Context as _, bail};
 use clap::ValueEnum;
 
@@ -73,30 +70,18 @@ impl Preset {
     }
 }
 
-/// Decodes a PNG into 8-bit RGB; errors name the file.
-pub(super) fn read_rgb(path: &Path) -> anyhow::Result<image::RgbImage> {
-    let reader =
-        image::ImageReader::open(path).with_context(|| format!("reading {}", path.display()))?;
-    let img = reader
-        .with_guessed_format()
-        .with_context(|| format!("reading {}", path.display()))?
-        .decode()
-        .with_context(|| format!("decoding {} (expected a PNG image)", path.display()))?;
-    Ok(img.to_rgb8())
-}
-
-pub(super) fn view(img: &image::RgbImage) -> anyhow::Result<RgbView<'_>> {
+fn view(img: &RgbImage) -> anyhow::Result<RgbView<'_>> {
     Ok(RgbView::new(
         img.width() as usize,
         img.height() as usize,
-        img.as_raw(),
+        img.as_slice().as_flattened(),
     )?)
 }
 
 pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
-    let first = read_rgb(&args.first)?;
-    let second = read_rgb(&args.second)?;
-    if first.dimensions() != second.dimensions() {
+    let first = read_png_as_rgb8(&args.first)?;
+    let second = read_png_as_rgb8(&args.second)?;
+    if (first.width(), first.height()) != (second.width(), second.height()) {
         bail!(
             "{} is {}x{} but {} is {}x{}: the images must have one size",
             args.first.display(),
@@ -117,15 +102,13 @@ pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
                 args.second.display()
             )
         })?;
-    write_flo(&args.output, &flow)?;
+    write_flo(&args.output, &flow.to_image()?)?;
     if let Some(viz) = &args.viz {
         let rgb = flow_to_rgb(&flow, None);
-        let img = image::RgbImage::from_raw(first.width(), first.height(), rgb)
+        let pixels = rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let img = RgbImage::from_vec(first.width(), first.height(), pixels)
             .context("colour-wheel image size")?;
-        let mut png = Vec::new();
-        img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-            .with_context(|| format!("encoding {}", viz.display()))?;
-        write_atomic(viz, &png).with_context(|| format!("writing {}", viz.display()))?;
+        write_rgb8(viz, &img)?;
     }
     Ok(())
 }

@@ -11,8 +11,8 @@
 //! A simulated scene is kept only if it is a useful benchmark scene: every object is seen
 //! by at least [`MIN_VISIBLE_PX`] pixels in every frame, every push finds a touching pair
 //! and moves some object by more than [`MIN_PUSH_FLOW_PX`] of ground-truth flow, and no
-//! object leaves the table. Otherwise the next attempt seed is tried (at most
-//! [`MAX_ATTEMPTS`]); [`GeneratedScene::attempts`] says how many were needed. All of this is
+//! object leaves the table. Otherwise the next attempt seed is tried
+//! ([`first_usable_seed`], at most [`MAX_SCENE_ATTEMPTS`]); [`GeneratedScene::attempts`] says how many were needed. All of this is
 //! deterministic, so the same dataset seed and family give the same files, byte for byte.
 //!
 //! Output layout: `OUT/scene_000/ …` (see [`crate::io::scene`]) and a preview per scene,
@@ -28,8 +28,9 @@ use crate::{
     io::image::{Gray16Image, ImageIoError, RgbImage, write_rgb8},
     io::scene::{PushAction, Scene, SceneCamera, SceneError},
     sim::{
-        DEFAULT_PUSH_LEN_M, Layout, ObjectBounds, ScriptedPush, SimConfig, SimError, SimFrame,
-        SimScene, TABLE_HALF_EXTENTS_M, ground_truth_flow,
+        DEFAULT_PUSH_LEN_M, Layout, MAX_SCENE_ATTEMPTS, ObjectBounds, ScriptedPush, SimConfig,
+        SimError, SimFrame, SimScene, TABLE_HALF_EXTENTS_M, first_usable_seed, ground_truth_flow,
+        scene_seed,
     },
 };
 
@@ -39,8 +40,6 @@ pub const DEPTH_UNIT_M: f32 = 0.001;
 pub const MIN_VISIBLE_PX: usize = 150;
 /// Every push must move some object by more than this much ground-truth flow, pixels.
 pub const MIN_PUSH_FLOW_PX: f32 = 1.0;
-/// Simulation attempts per scene before [`GenError::NoValidScene`].
-pub const MAX_ATTEMPTS: u32 = 20;
 /// Folder of the per-scene previews inside the output folder.
 pub const PREVIEW_DIR: &str = "preview";
 
@@ -93,16 +92,6 @@ pub struct GeneratedScene {
     pub attempts: u32,
 }
 
-/// The seed of scene `index` in a dataset with seed `dataset_seed` (splitmix64 of both).
-#[must_use]
-pub fn scene_seed(dataset_seed: u64, index: usize) -> u64 {
-    let mut z = dataset_seed ^ (index as u64).wrapping_mul(0xD1B5_4A32_D192_ED03);
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
 fn depth_to_units(frame: &SimFrame) -> Gray16Image {
     frame.depth_m.map(|&d| {
         let units = (d / DEPTH_UNIT_M).round();
@@ -137,26 +126,17 @@ pub fn generate_scene(
     layout: Layout,
     pushes: usize,
 ) -> Result<GeneratedScene, GenError> {
-    let mut reason = String::new();
-    for attempt in 0..MAX_ATTEMPTS {
-        let attempt_seed = if attempt == 0 {
-            seed
-        } else {
-            scene_seed(seed, attempt as usize)
-        };
-        match simulate(attempt_seed, layout, pushes)? {
-            Ok(mut g) => {
-                g.attempts = attempt + 1;
-                return Ok(g);
-            }
-            Err(why) => reason = why,
-        }
+    match first_usable_seed(seed, |s| simulate(s, layout, pushes))? {
+        Ok(found) => Ok(GeneratedScene {
+            attempts: found.attempts,
+            ..found.value
+        }),
+        Err(reason) => Err(GenError::NoValidScene {
+            seed,
+            attempts: MAX_SCENE_ATTEMPTS,
+            reason,
+        }),
     }
-    Err(GenError::NoValidScene {
-        seed,
-        attempts: MAX_ATTEMPTS,
-        reason,
-    })
 }
 
 /// One attempt: `Ok(Err(reason))` when the scene is not usable.

@@ -46,7 +46,7 @@
 //!
 //! A scene folder records the true poses in `poses.json` (format and rules in
 //! [`crate::io::scene`]; read into [`Scene::poses`](crate::io::scene::Scene::poses), and given
-//! per frame as [`CameraFrame::truth_poses`]). The simulator's frames carry them too.
+//! per frame in a captured frame's `truth_poses`). The simulator's frames carry them too.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -55,7 +55,6 @@ use riseg_core::Pose;
 
 use crate::{
     io::scene::ObjectPose,
-    rig::camera::CameraFrame,
     segment::{union_find_join, union_find_root},
 };
 
@@ -119,7 +118,8 @@ pub enum CeilingError {
     },
 }
 
-/// One frame of a scene, as the ceiling needs it (module docs).
+/// One frame of a scene, as the ceiling needs it (module docs). A captured frame lends
+/// one with `rig::camera::CameraFrame::ceiling_frame`.
 #[derive(Debug, Clone, Copy)]
 pub struct CeilingFrame<'a> {
     /// Image width, pixels.
@@ -132,22 +132,6 @@ pub struct CeilingFrame<'a> {
     pub static_labels: &'a [u16],
     /// Every object's true pose, world frame.
     pub poses: &'a [ObjectPose],
-}
-
-impl<'a> CeilingFrame<'a> {
-    /// A captured frame with its static segmentation (row-major, the frame's size);
-    /// `None` when the frame has no ground-truth labels or no poses.
-    #[must_use]
-    pub fn new(frame: &'a CameraFrame, static_labels: &'a [u16]) -> Option<Self> {
-        let (width, height) = frame.size();
-        Some(Self {
-            width,
-            height,
-            truth: frame.truth.as_ref()?.as_slice(),
-            static_labels,
-            poses: frame.truth_poses.as_deref()?,
-        })
-    }
 }
 
 /// The motion ceiling of one scene, frame after frame (module docs).

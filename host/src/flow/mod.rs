@@ -6,7 +6,8 @@
 //!   shows the same scene point as `(x + dx, y + dy)` in `second`. Pixel centres sit at
 //!   integer coordinates; `dx`, `dy` are in pixels, `dy` grows downwards.
 //! - [`Flow`] stores `[dx, dy]` per pixel, row-major, `width · height` entries: the layout
-//!   of a Middlebury `.flo` file body ([`flo`] reads and writes those files).
+//!   of a Middlebury `.flo` file body ([`Flow::from_image`], [`Flow::to_image`] and
+//!   [`crate::io::image::read_flo`] / [`crate::io::image::write_flo`] read and write those).
 //! - Unknown flow: a vector with a component of magnitude [`UNKNOWN_FLOW_MIN_PX`] or more
 //!   (the Middlebury convention, as `.flo` files store it) or a non-finite one (how flows
 //!   in memory mark it) carries no information ([`is_known_flow`]).
@@ -19,11 +20,9 @@
 //!
 //! # Modules
 //! [`dis`] holds the estimator and its presets; [`crate::testkit::flow`] (test support) makes image pairs with exact
-//! ground truth; [`viz`] draws a flow with the Middlebury colour wheel; [`flo`] is the
-//! `.flo` file format.
+//! ground truth; [`viz`] draws a flow with the Middlebury colour wheel.
 
 pub mod dis;
-pub mod flo;
 pub mod viz;
 
 mod densify;
@@ -84,6 +83,14 @@ pub enum FlowError {
         height: usize,
         /// Patch side, pixels.
         patch_px: usize,
+    },
+    /// A flow too large for an owned image (a side above `u32::MAX`).
+    #[error("flow {width}x{height} is too large for an image")]
+    TooLarge {
+        /// Width, pixels.
+        width: usize,
+        /// Height, pixels.
+        height: usize,
     },
     /// A parameter is out of its documented range.
     #[error("invalid flow parameters: {0}")]
@@ -250,6 +257,32 @@ impl Flow {
             height,
             data,
         })
+    }
+
+    /// The flow of a Middlebury `.flo` file ([`crate::io::image::read_flo`]) unchanged,
+    /// unknown vectors (`1e10`) included.
+    #[must_use]
+    pub fn from_image(image: FlowImage) -> Self {
+        let (width, height) = (image.width() as usize, image.height() as usize);
+        Self {
+            width,
+            height,
+            data: image.into_vec(),
+        }
+    }
+
+    /// The flow as an owned image, unchanged (for [`crate::io::image::write_flo`]).
+    ///
+    /// # Errors
+    /// [`FlowError::TooLarge`] if a side exceeds `u32::MAX`.
+    pub fn to_image(&self) -> Result<FlowImage, FlowError> {
+        let too_large = || FlowError::TooLarge {
+            width: self.width,
+            height: self.height,
+        };
+        let width = u32::try_from(self.width).map_err(|_| too_large())?;
+        let height = u32::try_from(self.height).map_err(|_| too_large())?;
+        FlowImage::from_vec(width, height, self.data.clone()).map_err(|_| too_large())
     }
 
     /// The flow of a Middlebury `.flo` file ([`crate::io::image::read_flo`]) with every

@@ -10,19 +10,20 @@
 //!   Readers never panic on any file content.
 //! - Every writer is atomic: the bytes go to a temporary file in the destination's folder,
 //!   which is flushed to disk and then renamed over the destination, so a reader sees either
-//!   the old file, or the complete new one, never half a file ([`write_atomic`]).
+//!   the old file, or the complete new one, never half a file ([`super::write_atomic`]).
 //! - Encoding is deterministic: the same image gives the same bytes.
 //!
 //! `.flo` (Middlebury): little-endian `f32` magic `202021.25` (the bytes `PIEH`), `i32`
 //! width, `i32` height, then `width·height` pairs of `f32` `(dx, dy)` in row-major order.
 //! Flow is in pixels: the pixel `(x, y)` of the first image moves to `(x + dx, y + dy)`.
 
-use core::sync::atomic::{AtomicU64, Ordering};
 use std::{
     fs,
-    io::{self, BufReader, Write as _},
+    io::{self, BufReader},
     path::{Path, PathBuf},
 };
+
+use super::write_atomic;
 
 use image::{
     DynamicImage, ExtendedColorType, ImageEncoder,
@@ -192,7 +193,7 @@ pub enum ImageProblem {
     },
     /// The `.flo` file is malformed.
     #[error("not a valid Middlebury .flo file: {0}")]
-    CorruptFlo(String),
+    CorruptFlo(#[source] FloFormatError),
 }
 
 impl ImageIoError {
@@ -238,39 +239,9 @@ impl ImageIoError {
     }
 }
 
-/// A hidden name beside `name` for a temporary file or folder, unique within this machine's
-/// processes and this process's threads: `.{name}.{kind}-{pid}-{n}`.
-pub(crate) fn temp_name(name: &str, kind: &str) -> String {
-    static NEXT: AtomicU64 = AtomicU64::new(0);
-    let n = NEXT.fetch_add(1, Ordering::Relaxed);
-    format!(".{name}.{kind}-{}-{n}", std::process::id())
-}
-
-/// Writes `bytes` to `path` atomically: a temporary file in the same folder, flushed to
-/// disk, then renamed over `path`. On error the temporary file is removed.
-///
-/// # Errors
-/// [`ImageProblem::Io`] naming `path` if the folder is missing or not writable.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ImageIoError> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .map_or_else(|| "unnamed".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = dir.join(temp_name(&name, "tmp"));
-    let result = (|| {
-        let mut file = fs::File::create(&tmp)?;
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        fs::rename(&tmp, path)
-    })();
-    result.map_err(|e| {
-        // Best effort: the temporary file may not exist if creating it failed.
-        let _ = fs::remove_file(&tmp);
-        ImageIoError::new(path, ImageProblem::Io(e))
-    })
+/// [`write_atomic`] with an error naming `path`.
+fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ImageIoError> {
+    write_atomic(path, bytes).map_err(|e| ImageIoError::new(path, ImageProblem::Io(e)))
 }
 
 fn read_bytes(path: &Path) -> Result<Vec<u8>, ImageIoError> {
@@ -345,6 +316,23 @@ pub fn read_rgb8(path: &Path) -> Result<RgbImage, ImageIoError> {
             .collect(),
         other => return Err(wrong_format(path, "8-bit RGB PNG", other)),
     };
+    from_decoded(path, width, height, data)
+}
+
+/// Reads a PNG of any colour type and bit depth converted to 8-bit RGB: grey is repeated
+/// in the three channels, alpha is dropped, 16-bit samples are scaled to 8 bits. For
+/// pictures from other tools (`riseg flow`); scene frames use the strict [`read_rgb8`].
+///
+/// # Errors
+/// Missing file, I/O error, or corrupt PNG.
+pub fn read_png_as_rgb8(path: &Path) -> Result<RgbImage, ImageIoError> {
+    let rgb = decode_png(path)?.into_rgb8();
+    let (width, height) = rgb.dimensions();
+    let data = rgb
+        .as_raw()
+        .chunks_exact(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
     from_decoded(path, width, height, data)
 }
 
@@ -442,7 +430,7 @@ pub fn write_rgb8(path: &Path, image: &RgbImage) -> Result<(), ImageIoError> {
         image.height,
         ExtendedColorType::Rgb8,
     )?;
-    write_atomic(path, &png)
+    write_file(path, &png)
 }
 
 /// Writes a 16-bit greyscale PNG atomically.
@@ -459,7 +447,7 @@ pub fn write_gray16(path: &Path, image: &Gray16Image) -> Result<(), ImageIoError
         image.height,
         ExtendedColorType::L16,
     )?;
-    write_atomic(path, &png)
+    write_file(path, &png)
 }
 
 /// Writes an 8-bit greyscale PNG atomically.
@@ -474,7 +462,7 @@ pub fn write_gray8(path: &Path, image: &Gray8Image) -> Result<(), ImageIoError> 
         image.height,
         ExtendedColorType::L8,
     )?;
-    write_atomic(path, &png)
+    write_file(path, &png)
 }
 
 /// The `.flo` magic number (the bytes `PIEH` read as a little-endian `f32`).
@@ -483,67 +471,63 @@ pub const FLO_MAGIC: f32 = 202_021.25;
 pub const FLO_MAX_SIDE: u32 = 1 << 15;
 const FLO_HEADER_BYTES: usize = 12;
 
-/// Reads a Middlebury `.flo` file.
-///
-/// # Errors
-/// Missing file, I/O error, wrong magic, non-positive or oversized dimensions, or a file
-/// length that does not match its header.
-pub fn read_flo(path: &Path) -> Result<FlowImage, ImageIoError> {
-    let bytes = read_bytes(path)?;
-    let corrupt = |msg: String| ImageIoError::new(path, ImageProblem::CorruptFlo(msg));
-    let word = |i: usize| -> Option<[u8; 4]> { bytes.get(i..i + 4)?.try_into().ok() };
-    let (Some(m), Some(w), Some(h)) = (word(0), word(4), word(8)) else {
-        return Err(corrupt(format!(
-            "{} bytes, shorter than the 12-byte header",
-            bytes.len()
-        )));
-    };
-    let magic = f32::from_le_bytes(m);
-    if magic.to_bits() != FLO_MAGIC.to_bits() {
-        return Err(corrupt(format!("magic is {magic}, expected {FLO_MAGIC}")));
-    }
-    let (w, h) = (i32::from_le_bytes(w), i32::from_le_bytes(h));
-    let side_ok = |s: i32| s > 0 && s as u32 <= FLO_MAX_SIDE;
-    if !side_ok(w) || !side_ok(h) {
-        return Err(corrupt(format!(
-            "header says {w}x{h} pixels; each side must be 1..={FLO_MAX_SIDE}"
-        )));
-    }
-    let (width, height) = (w as u32, h as u32);
-    let pixels = width as usize * height as usize;
-    let expected = FLO_HEADER_BYTES + pixels * 8;
-    if bytes.len() != expected {
-        return Err(corrupt(format!(
-            "{} bytes, a {width}x{height} flow needs {expected}",
-            bytes.len()
-        )));
-    }
-    let data: Vec<[f32; 2]> = bytes[FLO_HEADER_BYTES..]
-        .chunks_exact(8)
-        .map(|c| {
-            [
-                f32::from_le_bytes([c[0], c[1], c[2], c[3]]),
-                f32::from_le_bytes([c[4], c[5], c[6], c[7]]),
-            ]
-        })
-        .collect();
-    Image::from_vec(width, height, data).map_err(|e| corrupt(e.to_string()))
+/// What is wrong with `.flo` bytes, or with a flow that cannot be written as a `.flo` file.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FloFormatError {
+    /// Fewer than the 12 header bytes.
+    #[error("{len} bytes, shorter than the 12-byte header")]
+    TooShort {
+        /// Bytes present.
+        len: usize,
+    },
+    /// The first four bytes are not [`FLO_MAGIC`].
+    #[error("magic is {found}, expected {FLO_MAGIC}")]
+    BadMagic {
+        /// The float found.
+        found: f32,
+    },
+    /// A side in the header is below 1 or above [`FLO_MAX_SIDE`].
+    #[error("header says {width}x{height} pixels; each side must be 1..={FLO_MAX_SIDE}")]
+    BadSize {
+        /// Width as stored.
+        width: i32,
+        /// Height as stored.
+        height: i32,
+    },
+    /// The file's length does not match its header.
+    #[error("{found} bytes, a {width}x{height} flow needs {expected}")]
+    Length {
+        /// Width from the header.
+        width: u32,
+        /// Height from the header.
+        height: u32,
+        /// Bytes the header requires, header included.
+        expected: usize,
+        /// Bytes present.
+        found: usize,
+    },
+    /// A flow to encode has a side of zero or above [`FLO_MAX_SIDE`].
+    #[error("cannot write a {width}x{height} flow; each side must be 1..={FLO_MAX_SIDE}")]
+    Unwritable {
+        /// Width of the flow.
+        width: u32,
+        /// Height of the flow.
+        height: u32,
+    },
 }
 
-/// Writes a Middlebury `.flo` file atomically.
+/// The `.flo` bytes of `flow`.
 ///
 /// # Errors
-/// An image side above [`FLO_MAX_SIDE`] (or zero), or I/O errors, naming `path`.
-pub fn write_flo(path: &Path, flow: &FlowImage) -> Result<(), ImageIoError> {
+/// [`FloFormatError::Unwritable`] if a side is zero or above [`FLO_MAX_SIDE`].
+pub fn encode_flo(flow: &FlowImage) -> Result<Vec<u8>, FloFormatError> {
     let side_ok = |s: u32| s > 0 && s <= FLO_MAX_SIDE;
     if !side_ok(flow.width) || !side_ok(flow.height) {
-        return Err(ImageIoError::new(
-            path,
-            ImageProblem::CorruptFlo(format!(
-                "cannot write a {}x{} flow; each side must be 1..={FLO_MAX_SIDE}",
-                flow.width, flow.height
-            )),
-        ));
+        return Err(FloFormatError::Unwritable {
+            width: flow.width,
+            height: flow.height,
+        });
     }
     let mut bytes = Vec::with_capacity(FLO_HEADER_BYTES + flow.data.len() * 8);
     bytes.extend_from_slice(&FLO_MAGIC.to_le_bytes());
@@ -554,7 +538,78 @@ pub fn write_flo(path: &Path, flow: &FlowImage) -> Result<(), ImageIoError> {
         bytes.extend_from_slice(&dx.to_le_bytes());
         bytes.extend_from_slice(&dy.to_le_bytes());
     }
-    write_atomic(path, &bytes)
+    Ok(bytes)
+}
+
+/// Parses `.flo` bytes. The header is checked against [`FLO_MAX_SIDE`] and the length
+/// before anything is allocated, so a corrupt header cannot exhaust memory.
+///
+/// # Errors
+/// A [`FloFormatError`] naming the first problem found.
+pub fn decode_flo(bytes: &[u8]) -> Result<FlowImage, FloFormatError> {
+    let word = |i: usize| -> Option<[u8; 4]> { bytes.get(i..i + 4)?.try_into().ok() };
+    let (Some(m), Some(w), Some(h)) = (word(0), word(4), word(8)) else {
+        return Err(FloFormatError::TooShort { len: bytes.len() });
+    };
+    let magic = f32::from_le_bytes(m);
+    if magic.to_bits() != FLO_MAGIC.to_bits() {
+        return Err(FloFormatError::BadMagic { found: magic });
+    }
+    let (w, h) = (i32::from_le_bytes(w), i32::from_le_bytes(h));
+    let side_ok = |s: i32| s > 0 && s as u32 <= FLO_MAX_SIDE;
+    if !side_ok(w) || !side_ok(h) {
+        return Err(FloFormatError::BadSize {
+            width: w,
+            height: h,
+        });
+    }
+    let (width, height) = (w as u32, h as u32);
+    let pixels = width as usize * height as usize;
+    let expected = FLO_HEADER_BYTES + pixels * 8;
+    if bytes.len() != expected {
+        return Err(FloFormatError::Length {
+            width,
+            height,
+            expected,
+            found: bytes.len(),
+        });
+    }
+    let data: Vec<[f32; 2]> = bytes[FLO_HEADER_BYTES..]
+        .chunks_exact(8)
+        .map(|c| {
+            [
+                f32::from_le_bytes([c[0], c[1], c[2], c[3]]),
+                f32::from_le_bytes([c[4], c[5], c[6], c[7]]),
+            ]
+        })
+        .collect();
+    // The sides are checked and the length matched, so this cannot fail.
+    Image::from_vec(width, height, data).map_err(|_| FloFormatError::Length {
+        width,
+        height,
+        expected,
+        found: bytes.len(),
+    })
+}
+
+/// Reads a Middlebury `.flo` file.
+///
+/// # Errors
+/// Missing file, I/O error, or [`ImageProblem::CorruptFlo`] (wrong magic, non-positive or
+/// oversized dimensions, or a file length that does not match its header), naming `path`.
+pub fn read_flo(path: &Path) -> Result<FlowImage, ImageIoError> {
+    let bytes = read_bytes(path)?;
+    decode_flo(&bytes).map_err(|e| ImageIoError::new(path, ImageProblem::CorruptFlo(e)))
+}
+
+/// Writes a Middlebury `.flo` file atomically.
+///
+/// # Errors
+/// An image side above [`FLO_MAX_SIDE`] (or zero), or I/O errors, naming `path`.
+pub fn write_flo(path: &Path, flow: &FlowImage) -> Result<(), ImageIoError> {
+    let bytes =
+        encode_flo(flow).map_err(|e| ImageIoError::new(path, ImageProblem::CorruptFlo(e)))?;
+    write_file(path, &bytes)
 }
 
 #[cfg(test)]
@@ -686,10 +741,104 @@ mod tests {
     }
 
     #[test]
+    fn any_png_reads_as_rgb8() {
+        let dir = temp_dir("as-rgb8");
+        let rgb = RgbImage::from_fn(3, 2, |x, y| [x as u8, y as u8, 7]);
+        write_rgb8(&dir.join("c.png"), &rgb).unwrap();
+        assert_eq!(read_png_as_rgb8(&dir.join("c.png")).unwrap(), rgb);
+        let grey = Gray8Image::from_fn(3, 2, |x, y| (10 * x + y) as u8);
+        write_gray8(&dir.join("g.png"), &grey).unwrap();
+        assert_eq!(
+            read_png_as_rgb8(&dir.join("g.png")).unwrap(),
+            grey.map(|&v| [v; 3])
+        );
+        let deep = Gray16Image::from_fn(1, 1, |_, _| 0xff00);
+        write_gray16(&dir.join("d.png"), &deep).unwrap();
+        assert_eq!(
+            read_png_as_rgb8(&dir.join("d.png")).unwrap().as_slice(),
+            [[0xfe; 3]]
+        );
+        let e = read_png_as_rgb8(&dir.join("missing.png")).unwrap_err();
+        assert!(matches!(e.problem, ImageProblem::Missing));
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
     fn image_size_is_checked() {
         assert!(Image::from_vec(2, 2, vec![0u8; 3]).is_err());
         let img = Image::from_vec(2, 2, vec![1u8, 2, 3, 4]).unwrap();
         assert_eq!(img.get(1, 1), Some(&4));
         assert_eq!(img.get(2, 0), None);
+    }
+
+    fn sample_flow() -> FlowImage {
+        let data = (0..12)
+            .map(|i| [i as f32 * 0.5 - 2.0, -(i as f32) * 1.25])
+            .collect();
+        FlowImage::from_vec(4, 3, data).unwrap()
+    }
+
+    #[test]
+    fn flo_bytes_round_trip_and_header_layout() {
+        let f = sample_flow();
+        let b = encode_flo(&f).unwrap();
+        assert_eq!(&b[..4], b"PIEH");
+        assert_eq!(b.len(), 12 + 12 * 8);
+        assert_eq!(i32::from_le_bytes([b[4], b[5], b[6], b[7]]), 4);
+        assert_eq!(decode_flo(&b).unwrap(), f);
+    }
+
+    #[test]
+    fn flo_file_round_trip_leaves_no_temporary() {
+        let dir = temp_dir("flo-file");
+        let path = dir.join("a.flo");
+        write_flo(&path, &sample_flow()).unwrap();
+        assert_eq!(read_flo(&path).unwrap(), sample_flow());
+        assert_eq!(files_in(&dir), ["a.flo"]);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn corrupt_flo_bytes_are_errors() {
+        let b = encode_flo(&sample_flow()).unwrap();
+        assert!(matches!(
+            decode_flo(&b[..5]),
+            Err(FloFormatError::TooShort { len: 5 })
+        ));
+        assert!(matches!(
+            decode_flo(&b[..b.len() - 1]),
+            Err(FloFormatError::Length { .. })
+        ));
+        let mut bad = b.clone();
+        bad[0] ^= 1;
+        assert!(matches!(
+            decode_flo(&bad),
+            Err(FloFormatError::BadMagic { .. })
+        ));
+        // A huge header is refused before anything is allocated.
+        let mut huge = b[..12].to_vec();
+        huge[4..8].copy_from_slice(&i32::MAX.to_le_bytes());
+        huge[8..12].copy_from_slice(&i32::MAX.to_le_bytes());
+        assert!(matches!(
+            decode_flo(&huge),
+            Err(FloFormatError::BadSize { .. })
+        ));
+        let mut neg = b.clone();
+        neg[8..12].copy_from_slice(&(-3i32).to_le_bytes());
+        assert!(matches!(
+            decode_flo(&neg),
+            Err(FloFormatError::BadSize { .. })
+        ));
+        let empty = FlowImage::from_vec(0, 0, Vec::new()).unwrap();
+        assert!(matches!(
+            encode_flo(&empty),
+            Err(FloFormatError::Unwritable { .. })
+        ));
+    }
+
+    #[test]
+    fn missing_flo_file_error_names_it() {
+        let e = read_flo(Path::new("/nonexistent/riseg/x.flo")).unwrap_err();
+        assert!(e.to_string().contains("/nonexistent/riseg/x.flo"), "{e}");
     }
 }

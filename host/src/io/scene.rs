@@ -50,9 +50,10 @@ use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use riseg_core::{Intrinsics, Pose};
 use serde::{Deserialize, Serialize};
 
+use super::write_atomic;
 use crate::io::image::{
     FlowImage, Gray16Image, Image, ImageIoError, RgbImage, read_flo, read_gray_widened,
-    read_gray16, read_rgb8, write_atomic, write_flo, write_gray16, write_rgb8,
+    read_gray16, read_rgb8, write_flo, write_gray16, write_rgb8,
 };
 
 /// Intrinsics file name.
@@ -709,7 +710,7 @@ impl Scene {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        let tmp = parent.join(crate::io::image::temp_name(&name, "partial"));
+        let tmp = parent.join(super::temp_name(&name, "partial"));
         if tmp.exists() {
             // Left over from a crashed process that had the same id.
             fs::remove_dir_all(&tmp).map_err(|e| io_error(&tmp, e))?;
@@ -732,7 +733,10 @@ impl Scene {
                 path: path.to_path_buf(),
                 source,
             })?;
-            write_atomic(path, &bytes).map_err(SceneError::from)
+            write_atomic(path, &bytes).map_err(|source| SceneError::Io {
+                path: path.to_path_buf(),
+                source,
+            })
         };
         let camera_path = root.join(CAMERA_FILE);
         json(&camera_path, serde_json::to_vec_pretty(&self.camera))?;

@@ -4,6 +4,7 @@
 use riseg_core::Intrinsics;
 
 use crate::{
+    eval::ceiling::CeilingFrame,
     io::image::{DepthImage, Gray16Image, RgbImage},
     io::scene::{ObjectPose, Scene},
     segment::{RgbdFrame, SegmentError},
@@ -33,6 +34,20 @@ impl CameraFrame {
     #[must_use]
     pub fn size(&self) -> (usize, usize) {
         (self.rgb.width() as usize, self.rgb.height() as usize)
+    }
+
+    /// This frame with its static segmentation (row-major, the frame's size) as the motion
+    /// ceiling's input; `None` when the frame has no ground-truth labels or no poses.
+    #[must_use]
+    pub fn ceiling_frame<'a>(&'a self, static_labels: &'a [u16]) -> Option<CeilingFrame<'a>> {
+        let (width, height) = self.size();
+        Some(CeilingFrame {
+            width,
+            height,
+            truth: self.truth.as_ref()?.as_slice(),
+            static_labels,
+            poses: self.truth_poses.as_deref()?,
+        })
     }
 
     /// The colour and depth images as a static segmenter's input.

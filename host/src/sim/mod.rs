@@ -44,6 +44,7 @@ mod devices;
 mod flow;
 mod layout;
 mod render;
+mod seed;
 mod shear;
 
 use core::fmt;
@@ -61,6 +62,7 @@ pub use crate::io::scene::ObjectPose;
 pub use devices::{ARM_MAX_PUSH_LEN_M, ARM_MAX_TOOL_HEIGHT_M, SimCamera, SimRig, SimRobot};
 pub use flow::{UNKNOWN_FLOW, ground_truth_flow};
 pub use layout::{Layout, ObjectShape};
+pub use seed::{MAX_SCENE_ATTEMPTS, Seeded, attempt_seed, first_usable_seed, scene_seed};
 
 use crate::{
     io::image::{DepthImage, Gray16Image, RgbImage},

@@ -102,10 +102,24 @@ pub struct MaskScratch<'a> {
     pub segment_target: &'a mut [u32],
     /// See [`MaskScratch::segment_size`].
     pub segment_key: &'a mut [u32],
-    /// `(segment, group, seeds)` triples; three per frame.
-    pub seeds: &'a mut [[u32; 3]],
+    /// One entry per (segment, group) pair with seeds there; three per frame.
+    pub seeds: &'a mut [SegmentSeeds],
     /// Rigid motion of each group in the camera frame; one per frame.
     pub motions: &'a mut [Pose],
+}
+
+/// One group's seeds in one segment (step 3), then the label its region gets (step 5).
+/// Entries sort by segment, then group.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord)]
+pub struct SegmentSeeds {
+    /// Segment id (step 2).
+    pub segment: u32,
+    /// The group the seeds are from ([`seed_group`]'s id).
+    pub group: u32,
+    /// Seed pixels: three per frame of the group whose tracked pixels lie in the segment.
+    pub seeds: u32,
+    /// Label of the group's region in a split segment (step 5); unused otherwise.
+    pub label: u32,
 }
 
 /// Element counts [`MaskScratch`] needs.
@@ -141,7 +155,7 @@ impl MaskScratchLen {
         self.pixels
             .saturating_mul(4 * size_of::<u32>() + size_of::<u16>())
             .saturating_add(self.segments.saturating_mul(3 * size_of::<u32>()))
-            .saturating_add(self.seeds.saturating_mul(size_of::<[u32; 3]>()))
+            .saturating_add(self.seeds.saturating_mul(size_of::<SegmentSeeds>()))
             .saturating_add(self.motions.saturating_mul(size_of::<Pose>()))
     }
 }
@@ -275,7 +289,7 @@ pub fn correct_mask(
             };
             let seg = segment.get(i).copied().unwrap_or(0);
             let run = groups_in(seeds, seg);
-            if seg == 0 || run.len() < 2 || !run.iter().any(|s| s[1] == u32::from(g)) {
+            if seg == 0 || run.len() < 2 || !run.iter().any(|s| s.group == u32::from(g)) {
                 continue;
             }
             if let (Some(c @ 0), Some(q)) = (claim.get_mut(i), queue.get_mut(tail)) {
@@ -291,7 +305,7 @@ pub fn correct_mask(
     key.fill(UNSEEN);
     let k = input.intrinsics;
     let (inv_fx, inv_fy) = (1.0 / k.fx, 1.0 / k.fy);
-    let explain = |j: usize, candidates: &[[u32; 3]]| -> u32 {
+    let explain = |j: usize, candidates: &[SegmentSeeds]| -> u32 {
         let Some(s) = source.get(j).copied().filter(|&s| s != NONE) else {
             return HOLE;
         };
@@ -306,7 +320,7 @@ pub fn correct_mask(
         let p = Point3::new((u - k.cx) * z * inv_fx, (v - k.cy) * z * inv_fy, z);
         let (ox, oy) = (u + dx, v + dy);
         let mut best = (cfg.grow_tol_px * cfg.grow_tol_px, 0);
-        for &[_, g, _] in candidates {
+        for &SegmentSeeds { group: g, .. } in candidates {
             let Some(m) = motions.get(g as usize) else {
                 continue;
             };
@@ -362,17 +376,17 @@ pub fn correct_mask(
     let mut split_segments = 0;
     let mut start = 0;
     while start < seeds.len() {
-        let seg = seeds.get(start).map_or(0, |s| s[0]);
+        let seg = seeds.get(start).map_or(0, |s| s.segment);
         let run = groups_in(seeds, seg);
         let end = start + run.len().max(1);
         if run.len() >= 2 {
             split_segments += 1;
             let largest = run
                 .iter()
-                .max_by_key(|s| (s[2], u32::MAX - s[1]))
-                .map_or(NONE, |s| s[1]);
+                .max_by_key(|s| (s.seeds, u32::MAX - s.group))
+                .map_or(NONE, |s| s.group);
             for entry in seeds.get_mut(start..end).unwrap_or(&mut []) {
-                entry[2] = if entry[1] == largest {
+                entry.label = if entry.group == largest {
                     seg
                 } else {
                     next += 1;
@@ -389,8 +403,8 @@ pub fn correct_mask(
         *out = seg as u16;
         if c != 0 {
             let g = u32::from(c - 1);
-            if let Some(entry) = groups_in(seeds, seg).iter().find(|s| s[1] == g) {
-                *out = entry[2] as u16;
+            if let Some(entry) = groups_in(seeds, seg).iter().find(|s| s.group == g) {
+                *out = entry.label as u16;
             }
         }
     }
@@ -710,7 +724,7 @@ fn absorb_fragments(
 /// (labels below `next`); `parent` is scratch of at least `next` entries. Returns the
 /// merges made.
 fn merge_same_motion(
-    seeds: &[[u32; 3]],
+    seeds: &[SegmentSeeds],
     groups: &FrameGroups<'_>,
     static_of: &[u32],
     cfg: &Config,
@@ -742,12 +756,12 @@ fn merge_same_motion(
         l
     };
     // The output label of a seed entry, and its group if that group moved.
-    let moving = |e: &[u32; 3]| {
-        let g = groups.groups.get(e[1] as usize).filter(|g| g.moving)?;
-        let label = if groups_in(seeds, e[0]).len() >= 2 {
-            e[2]
+    let moving = |e: &SegmentSeeds| {
+        let g = groups.groups.get(e.group as usize).filter(|g| g.moving)?;
+        let label = if groups_in(seeds, e.segment).len() >= 2 {
+            e.label
         } else {
-            e[0]
+            e.segment
         };
         Some((label, g))
     };
@@ -756,7 +770,7 @@ fn merge_same_motion(
         let Some((la, ga)) = moving(a) else { continue };
         for b in seeds.get(i + 1..).unwrap_or(&[]) {
             let Some((lb, gb)) = moving(b) else { continue };
-            let static_label = |e: &[u32; 3]| static_of.get(e[0] as usize).copied();
+            let static_label = |e: &SegmentSeeds| static_of.get(e.segment as usize).copied();
             if ga.label == gb.label
                 || static_label(a) == static_label(b)
                 || ga.twist.distance(&gb.twist, cfg.length_scale_m) >= cfg.merge_twist_m
@@ -802,7 +816,7 @@ fn collect_seeds(
     groups: &FrameGroups<'_>,
     segment: &[u32],
     min_seeds: u32,
-    seeds: &mut [[u32; 3]],
+    seeds: &mut [SegmentSeeds],
 ) -> usize {
     let mut len = 0;
     for (frame, &g) in groups.frames.iter().zip(groups.frame_group) {
@@ -815,7 +829,12 @@ fn collect_seeds(
                 .and_then(|(i, _)| segment.get(i).copied())
                 .unwrap_or(0);
             if let (true, Some(slot)) = (seg != 0, seeds.get_mut(len)) {
-                *slot = [seg, u32::from(g), 1];
+                *slot = SegmentSeeds {
+                    segment: seg,
+                    group: u32::from(g),
+                    seeds: 1,
+                    label: seg,
+                };
                 len += 1;
             }
         }
@@ -827,14 +846,16 @@ fn collect_seeds(
     // Collapse equal (segment, group) entries, summing counts.
     let mut out = 0usize;
     for i in 0..seeds.len() {
-        let Some(&[s, g, c]) = seeds.get(i) else {
+        let Some(&entry) = seeds.get(i) else {
             break;
         };
         match out.checked_sub(1).and_then(|p| seeds.get_mut(p)) {
-            Some(prev) if prev[0] == s && prev[1] == g => prev[2] += c,
+            Some(prev) if (prev.segment, prev.group) == (entry.segment, entry.group) => {
+                prev.seeds += entry.seeds;
+            }
             _ => {
                 if let Some(slot) = seeds.get_mut(out) {
-                    *slot = [s, g, c];
+                    *slot = entry;
                 }
                 out += 1;
             }
@@ -843,7 +864,7 @@ fn collect_seeds(
     let mut kept = 0;
     for i in 0..out {
         let Some(&entry) = seeds.get(i) else { break };
-        if entry[2] >= min_seeds {
+        if entry.seeds >= min_seeds {
             if let Some(slot) = seeds.get_mut(kept) {
                 *slot = entry;
             }
@@ -853,9 +874,9 @@ fn collect_seeds(
     kept
 }
 
-/// The `(segment, group, count)` entries of one segment.
-fn groups_in(seeds: &[[u32; 3]], seg: u32) -> &[[u32; 3]] {
-    let from = seeds.partition_point(|s| s[0] < seg);
-    let to = seeds.partition_point(|s| s[0] <= seg);
+/// The entries of one segment.
+fn groups_in(seeds: &[SegmentSeeds], seg: u32) -> &[SegmentSeeds] {
+    let from = seeds.partition_point(|s| s.segment < seg);
+    let to = seeds.partition_point(|s| s.segment <= seg);
     seeds.get(from..to).unwrap_or(&[])
 }

@@ -11,7 +11,7 @@ use crate::{
     action::{ActionScratch, ActionScratchLen},
     frames::{BodyFrame, FrameSample},
     group::{GroupInfo, GroupScratch},
-    mask::MaskScratch,
+    mask::{MaskScratch, SegmentSeeds},
     pipeline::{Workspace, WorkspaceLen},
 };
 
@@ -37,7 +37,7 @@ pub struct WorkspaceBuf {
     segment_size: Vec<u32>,
     segment_target: Vec<u32>,
     segment_key: Vec<u32>,
-    seeds: Vec<[u32; 3]>,
+    seeds: Vec<SegmentSeeds>,
     motions: Vec<Pose>,
 }
 
@@ -67,7 +67,7 @@ impl WorkspaceBuf {
             segment_size: vec![0; seg],
             segment_target: vec![0; seg],
             segment_key: vec![0; seg],
-            seeds: vec![[0; 3]; len.mask.seeds],
+            seeds: vec![SegmentSeeds::default(); len.mask.seeds],
             motions: vec![Pose::identity(); len.mask.motions],
         }
     }

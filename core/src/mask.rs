@@ -371,34 +371,8 @@ pub fn correct_mask(
         }
     }
 
-    // 5. Label: segment s keeps label s; extra groups of split segments get new labels.
-    let mut next = count as u32 + 1;
-    let mut split_segments = 0;
-    let mut start = 0;
-    while start < seeds.len() {
-        let seg = seeds.get(start).map_or(0, |s| s.segment);
-        let run = groups_in(seeds, seg);
-        let end = start + run.len().max(1);
-        if run.len() >= 2 {
-            split_segments += 1;
-            let largest = run
-                .iter()
-                .max_by_key(|s| (s.seeds, u32::MAX - s.group))
-                .map_or(NONE, |s| s.group);
-            for entry in seeds.get_mut(start..end).unwrap_or(&mut []) {
-                entry.label = if entry.group == largest {
-                    seg
-                } else {
-                    next += 1;
-                    next - 1
-                };
-            }
-        }
-        start = end;
-    }
-    if next > MAX_SEGMENTS as u32 + 1 {
-        return Err(Error::TooManyLabels);
-    }
+    // 5. Label.
+    let (next, split_segments) = label_split_segments(seeds, count)?;
     for ((out, &seg), &c) in labels_t1.iter_mut().zip(segment.iter()).zip(claim.iter()) {
         *out = seg as u16;
         if c != 0 {
@@ -512,6 +486,44 @@ fn fit_motion(groups: &FrameGroups<'_>, id: usize) -> Option<Pose> {
     }
     let limit = (2.5 * total / count).max(1e-3);
     fit_rigid_motion(members().filter(|(a, b)| miss(&first, a, b) <= limit)).or(Some(first))
+}
+
+/// Step 5 (module docs): in every segment with two or more groups, the group with the
+/// most seeds keeps the segment's id as its label and every other group gets a new label
+/// from `count + 1` on, in seed order. Returns the next free label and how many segments
+/// were split.
+///
+/// # Errors
+/// [`Error::TooManyLabels`] if the labels do not fit `u16`.
+fn label_split_segments(seeds: &mut [SegmentSeeds], count: usize) -> Result<(u32, usize), Error> {
+    let mut next = u32::try_from(count).map_err(|_| Error::TooManyLabels)? + 1;
+    let mut split_segments = 0;
+    let mut start = 0;
+    while start < seeds.len() {
+        let seg = seeds.get(start).map_or(0, |s| s.segment);
+        let run = groups_in(seeds, seg);
+        let end = start + run.len().max(1);
+        if run.len() >= 2 {
+            split_segments += 1;
+            let largest = run
+                .iter()
+                .max_by_key(|s| (s.seeds, u32::MAX - s.group))
+                .map_or(NONE, |s| s.group);
+            for entry in seeds.get_mut(start..end).unwrap_or(&mut []) {
+                entry.label = if entry.group == largest {
+                    seg
+                } else {
+                    next += 1;
+                    next - 1
+                };
+            }
+        }
+        start = end;
+    }
+    if next > MAX_SEGMENTS as u32 + 1 {
+        return Err(Error::TooManyLabels);
+    }
+    Ok((next, split_segments))
 }
 
 /// Per-segment scratch arrays.
@@ -879,4 +891,47 @@ fn groups_in(seeds: &[SegmentSeeds], seg: u32) -> &[SegmentSeeds] {
     let from = seeds.partition_point(|s| s.segment < seg);
     let to = seeds.partition_point(|s| s.segment <= seg);
     seeds.get(from..to).unwrap_or(&[])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(segment: u32, group: u32, seeds: u32) -> SegmentSeeds {
+        SegmentSeeds {
+            segment,
+            group,
+            seeds,
+            label: segment,
+        }
+    }
+
+    #[test]
+    fn the_group_with_most_seeds_keeps_the_segment_and_the_others_get_new_labels() {
+        // Segment 1: one group (not split). Segment 2: groups 0, 3, 5 with 30, 90, 45
+        // seeds. Segment 4: groups 1 and 2 with equal seeds (the lower id wins).
+        let mut seeds = [
+            entry(1, 0, 60),
+            entry(2, 0, 30),
+            entry(2, 3, 90),
+            entry(2, 5, 45),
+            entry(4, 1, 40),
+            entry(4, 2, 40),
+        ];
+        let (next, split) = label_split_segments(&mut seeds, 4).unwrap();
+        assert_eq!(split, 2);
+        let labels: [u32; 6] = core::array::from_fn(|i| seeds[i].label);
+        assert_eq!(labels, [1, 5, 2, 6, 4, 7]);
+        assert_eq!(next, 8);
+    }
+
+    #[test]
+    fn labels_past_u16_are_an_error() {
+        let mut seeds = [entry(1, 0, 10), entry(1, 1, 10)];
+        assert_eq!(
+            label_split_segments(&mut seeds, MAX_SEGMENTS),
+            Err(Error::TooManyLabels)
+        );
+        assert!(label_split_segments(&mut seeds, MAX_SEGMENTS - 1).is_ok());
+    }
 }

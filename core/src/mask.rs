@@ -235,22 +235,15 @@ pub fn correct_mask(
     splat(input, key, source, labels_t1);
 
     // 2. Intersect.
-    for (y, (keys, carried)) in key
-        .chunks_mut(width)
-        .zip(labels_t1.chunks(width))
-        .enumerate()
-    {
-        let statics = static_t1.row(y).unwrap_or(&[]);
-        for ((k, &c), &s) in keys.iter_mut().zip(carried).zip(statics) {
-            *k = if s == 0 {
-                0
-            } else {
-                (u32::from(c) << 16) | u32::from(s)
-            };
-        }
-    }
-    let count = label_segments(grid, key, cfg.min_segment_px, segment, queue, &mut segs)?;
-    absorb_fragments(segment, count, cfg.min_segment_px, queue, &mut segs);
+    let count = intersect(
+        grid,
+        labels_t1,
+        static_t1,
+        cfg.min_segment_px,
+        key,
+        (segment, queue),
+        &mut segs,
+    )?;
 
     // 3. Seed: (segment, group, count) runs.
     // A group counts in a segment only with the seeds of a group's worth of frames
@@ -486,6 +479,41 @@ fn fit_motion(groups: &FrameGroups<'_>, id: usize) -> Option<Pose> {
     }
     let limit = (2.5 * total / count).max(1e-3);
     fit_rigid_motion(members().filter(|(a, b)| miss(&first, a, b) <= limit)).or(Some(first))
+}
+
+/// Step 2 (module docs): the segments of the (carried, static) keys, small ones joined to
+/// their largest neighbour and fragments to the largest component of their static
+/// segment. Writes segment ids (`1..=count`, `0` background) to `segment`; returns
+/// `count`. `key` and `queue` are scratch of one entry per pixel.
+///
+/// # Errors
+/// [`Error::TooManyLabels`] with more than [`MAX_SEGMENTS`] segments.
+fn intersect(
+    grid: Grid,
+    carried: &[u16],
+    static_t1: &ImageView<'_, u16>,
+    min_px: u32,
+    key: &mut [u32],
+    (segment, queue): (&mut [u32], &mut [u32]),
+    segs: &mut Segments<'_>,
+) -> Result<usize, Error> {
+    for (y, (keys, carried)) in key
+        .chunks_mut(grid.width)
+        .zip(carried.chunks(grid.width))
+        .enumerate()
+    {
+        let statics = static_t1.row(y).unwrap_or(&[]);
+        for ((k, &c), &s) in keys.iter_mut().zip(carried).zip(statics) {
+            *k = if s == 0 {
+                0
+            } else {
+                (u32::from(c) << 16) | u32::from(s)
+            };
+        }
+    }
+    let count = label_segments(grid, key, min_px, segment, queue, segs)?;
+    absorb_fragments(segment, count, min_px, queue, segs);
+    Ok(count)
 }
 
 /// Step 5 (module docs): in every segment with two or more groups, the group with the
@@ -895,6 +923,8 @@ fn groups_in(seeds: &[SegmentSeeds], seg: u32) -> &[SegmentSeeds] {
 
 #[cfg(test)]
 mod tests {
+    use std::{vec, vec::Vec};
+
     use super::*;
 
     fn entry(segment: u32, group: u32, seeds: u32) -> SegmentSeeds {
@@ -904,6 +934,82 @@ mod tests {
             seeds,
             label: segment,
         }
+    }
+
+    /// Runs step 2 on a `width`-wide image; returns the segment ids.
+    fn run_intersect(
+        width: usize,
+        carried: &[u16],
+        statics: &[u16],
+        min_px: u32,
+    ) -> (usize, Vec<u32>) {
+        let n = carried.len();
+        let grid = Grid {
+            width,
+            height: n / width,
+        };
+        let (mut key, mut segment, mut queue) = (vec![0u32; n], vec![0u32; n], vec![0u32; n]);
+        let (mut size, mut target, mut seg_key) = (
+            vec![0u32; MAX_SEGMENTS + 1],
+            vec![0u32; MAX_SEGMENTS + 1],
+            vec![0u32; MAX_SEGMENTS + 1],
+        );
+        let mut segs = Segments {
+            size: &mut size,
+            target: &mut target,
+            key: &mut seg_key,
+        };
+        let static_t1 = ImageView::packed(width, n / width, statics).unwrap();
+        let count = intersect(
+            grid,
+            carried,
+            &static_t1,
+            min_px,
+            &mut key,
+            (&mut segment, &mut queue),
+            &mut segs,
+        )
+        .unwrap();
+        (count, segment)
+    }
+
+    #[test]
+    fn a_split_the_static_mask_missed_stays_and_a_carried_sliver_joins_its_host() {
+        // One static segment, 8x4. Carried label 1 on the left five columns, 2 on the
+        // right three, and a 2-pixel sliver of label 2 carried into the left (a flow
+        // error): it joins the largest component of its static segment, the left one.
+        #[rustfmt::skip]
+        let carried = [
+            1, 1, 1, 1, 1, 2, 2, 2,
+            1, 2, 2, 1, 1, 2, 2, 2,
+            1, 1, 1, 1, 1, 2, 2, 2,
+            1, 1, 1, 1, 1, 2, 2, 2,
+        ];
+        let statics = [1u16; 32];
+        let (_, segment) = run_intersect(8, &carried, &statics, 1);
+        let left = segment[0];
+        let right = segment[7];
+        assert_ne!(left, right, "the carried split stays");
+        assert_eq!(segment[9], left, "the sliver joins the left object");
+        assert_eq!(segment[10], left);
+        assert!(segment.iter().all(|&s| s == left || s == right));
+    }
+
+    #[test]
+    fn a_split_in_the_static_mask_is_kept_and_background_stays_background() {
+        // Carried: one label over everything; static: two segments and a background
+        // column.
+        let carried = [1u16; 12];
+        #[rustfmt::skip]
+        let statics = [
+            1, 1, 0, 2, 2, 2,
+            1, 1, 0, 2, 2, 2,
+        ];
+        let (count, segment) = run_intersect(6, &carried, &statics, 1);
+        assert_eq!(count, 2);
+        assert_eq!(segment[2], 0);
+        assert_eq!(segment[8], 0);
+        assert_ne!(segment[0], segment[3]);
     }
 
     #[test]

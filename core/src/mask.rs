@@ -252,15 +252,7 @@ pub fn correct_mask(
     let seed_count = collect_seeds(grid, groups, segment, min_seeds, &mut *scratch.seeds);
     let seeds = &mut scratch.seeds[..seed_count];
     let motions = &mut scratch.motions[..groups.groups.len()];
-    let to_camera = Translation3::from(groups.space_origin.coords);
-    for (id, (m, g)) in motions.iter_mut().zip(groups.groups).enumerate() {
-        *m = if g.moving {
-            fit_motion(groups, id)
-                .unwrap_or_else(|| to_camera * g.twist.exp() * to_camera.inverse())
-        } else {
-            Pose::identity()
-        };
-    }
+    group_motions(groups, motions);
 
     // 4. Grow, in every segment with two or more groups.
     claim.fill(0);
@@ -514,6 +506,20 @@ fn intersect(
     let count = label_segments(grid, key, min_px, segment, queue, segs)?;
     absorb_fragments(segment, count, min_px, queue, segs);
     Ok(count)
+}
+
+/// Step 3, motions: each moving group's rigid motion in the camera frame ([`fit_motion`],
+/// or its twist when the fit fails), the identity for groups that did not move.
+fn group_motions(groups: &FrameGroups<'_>, motions: &mut [Pose]) {
+    let to_camera = Translation3::from(groups.space_origin.coords);
+    for (id, (m, g)) in motions.iter_mut().zip(groups.groups).enumerate() {
+        *m = if g.moving {
+            fit_motion(groups, id)
+                .unwrap_or_else(|| to_camera * g.twist.exp() * to_camera.inverse())
+        } else {
+            Pose::identity()
+        };
+    }
 }
 
 /// Step 5 (module docs): in every segment with two or more groups, the group with the
@@ -1010,6 +1016,58 @@ mod tests {
         assert_eq!(segment[2], 0);
         assert_eq!(segment[8], 0);
         assert_ne!(segment[0], segment[3]);
+    }
+
+    #[test]
+    fn a_moving_group_moves_by_its_points_fit_and_a_still_one_by_the_identity() {
+        use crate::{Twist, frames::BodyFrame, group::GroupInfo};
+        use nalgebra::{UnitQuaternion, Vector3};
+        let motion = Pose::from_parts(
+            Translation3::new(0.02, -0.01, 0.0),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.1),
+        );
+        let frames: Vec<BodyFrame> = (0..8)
+            .map(|i| {
+                let x = i as Real * 0.01;
+                let p_t = [
+                    Point3::new(x, 0.0, 0.6),
+                    Point3::new(x + 0.02, 0.0, 0.6),
+                    Point3::new(x, 0.02, 0.61),
+                ];
+                BodyFrame {
+                    p_t,
+                    p_t1: p_t.map(|p| motion * p),
+                    ..BodyFrame::EMPTY
+                }
+            })
+            .collect();
+        let frame_group = [0u16, 0, 0, 0, 1, 1, 1, 1];
+        // The twists are deliberately wrong: a moving group's motion comes from its points.
+        let infos = [
+            GroupInfo {
+                frames: 4,
+                twist: Twist::ZERO,
+                moving: true,
+                label: 1,
+            },
+            GroupInfo {
+                frames: 4,
+                twist: Twist::ZERO,
+                moving: false,
+                label: 1,
+            },
+        ];
+        let groups = FrameGroups {
+            frames: &frames,
+            frame_group: &frame_group,
+            groups: &infos,
+            space_origin: Point3::new(0.0, 0.0, 0.6),
+        };
+        let mut motions = [Pose::identity(); 2];
+        group_motions(&groups, &mut motions);
+        let p = Point3::new(0.05, 0.03, 0.6);
+        assert!((motions[0] * p - motion * p).norm() < 1e-5);
+        assert_eq!(motions[1], Pose::identity());
     }
 
     #[test]

@@ -255,106 +255,19 @@ pub fn correct_mask(
     group_motions(groups, motions);
 
     // 4. Grow, in every segment with two or more groups.
-    claim.fill(0);
-    let mut head = 0;
-    let mut tail = 0;
-    for f in 0..groups.frames.len() {
-        let (Some(frame), Some(g)) = (
-            groups.frames.get(f),
-            groups
-                .frame_group
-                .get(f)
-                .and_then(|&g| seed_group(groups, g)),
-        ) else {
-            continue;
-        };
-        for px in frame.px_t1 {
-            let Some((i, packed)) = grid.locate(px) else {
-                continue;
-            };
-            let seg = segment.get(i).copied().unwrap_or(0);
-            let run = groups_in(seeds, seg);
-            if seg == 0 || run.len() < 2 || !run.iter().any(|s| s.group == u32::from(g)) {
-                continue;
-            }
-            if let (Some(c @ 0), Some(q)) = (claim.get_mut(i), queue.get_mut(tail)) {
-                *c = g + 1;
-                *q = packed;
-                tail += 1;
-            }
-        }
-    }
-    // The best explaining group of a pixel is computed once, when a region first reaches
-    // it: key holds UNSEEN, HOLE (no observation: any region may pass), or group + 1
-    // (0: no group within tolerance).
-    key.fill(UNSEEN);
-    let k = input.intrinsics;
-    let (inv_fx, inv_fy) = (1.0 / k.fx, 1.0 / k.fy);
-    let explain = |j: usize, candidates: &[SegmentSeeds]| -> u32 {
-        let Some(s) = source.get(j).copied().filter(|&s| s != NONE) else {
-            return HOLE;
-        };
-        let (sx, sy) = Grid::unpack(s);
-        let (Some(z), Some([dx, dy])) = (
-            input.depth_t.get(sx, sy).copied().and_then(valid_depth),
-            input.flow.get(sx, sy).copied(),
-        ) else {
-            return HOLE;
-        };
-        let (u, v) = (sx as Real, sy as Real);
-        let p = Point3::new((u - k.cx) * z * inv_fx, (v - k.cy) * z * inv_fy, z);
-        let (ox, oy) = (u + dx, v + dy);
-        let mut best = (cfg.grow_tol_px * cfg.grow_tol_px, 0);
-        for &SegmentSeeds { group: g, .. } in candidates {
-            let Some(m) = motions.get(g as usize) else {
-                continue;
-            };
-            let q = m * p;
-            if q.z <= 1e-6 {
-                continue;
-            }
-            let inv_z = 1.0 / q.z;
-            let ex = k.fx * q.x * inv_z + k.cx - ox;
-            let ey = k.fy * q.y * inv_z + k.cy - oy;
-            let r2 = ex * ex + ey * ey;
-            if r2 <= best.0 {
-                best = (r2, g + 1);
-            }
-        }
-        best.1
-    };
-    while head < tail {
-        let Some(&p) = queue.get(head) else { break };
-        head += 1;
-        let i = grid.index(p);
-        let (Some(&seg), Some(&mine)) = (segment.get(i), claim.get(i)) else {
-            continue;
-        };
-        let candidates = groups_in(seeds, seg);
-        for (j, pj) in grid.neighbours(p) {
-            if segment.get(j) != Some(&seg) || claim.get(j) != Some(&0) {
-                continue;
-            }
-            let decision = match key.get(j).copied() {
-                Some(UNSEEN) => {
-                    let d = explain(j, candidates);
-                    if let Some(slot) = key.get_mut(j) {
-                        *slot = d;
-                    }
-                    d
-                }
-                Some(d) => d,
-                None => continue,
-            };
-            if (decision == HOLE || decision == u32::from(mine))
-                && let (Some(c), Some(q)) = (claim.get_mut(j), queue.get_mut(tail))
-            {
-                *c = mine;
-                *q = pj;
-                tail += 1;
-            }
-        }
-    }
+    grow_regions(
+        grid,
+        input,
+        cfg,
+        groups,
+        Regions {
+            segment,
+            seeds,
+            motions,
+            source,
+        },
+        (key, claim, queue),
+    );
 
     // 5. Label.
     let (next, split_segments) = label_split_segments(seeds, count)?;
@@ -506,6 +419,136 @@ fn intersect(
     let count = label_segments(grid, key, min_px, segment, queue, segs)?;
     absorb_fragments(segment, count, min_px, queue, segs);
     Ok(count)
+}
+
+/// What step 4 grows over: segment ids, the seed entries, the groups' motions and each
+/// pixel's source at `t` (step 1).
+struct Regions<'r> {
+    segment: &'r [u32],
+    seeds: &'r [SegmentSeeds],
+    motions: &'r [Pose],
+    source: &'r [u32],
+}
+
+/// Step 4 (module docs): in every segment where two or more groups count, regions grow
+/// breadth-first from the groups' seed pixels to 4-neighbours that the group's motion
+/// explains best (within [`Config::grow_tol_px`]); pixels without an observation pass
+/// for any region. Writes `group + 1` of the region that claimed each pixel to `claim`
+/// (`0`: none). `key` and `queue` are scratch of one entry per pixel.
+fn grow_regions(
+    grid: Grid,
+    input: &MotionInput<'_>,
+    cfg: &Config,
+    groups: &FrameGroups<'_>,
+    regions: Regions<'_>,
+    (key, claim, queue): (&mut [u32], &mut [u16], &mut [u32]),
+) {
+    let Regions {
+        segment,
+        seeds,
+        motions,
+        source,
+    } = regions;
+    claim.fill(0);
+    let mut head = 0;
+    let mut tail = 0;
+    for f in 0..groups.frames.len() {
+        let (Some(frame), Some(g)) = (
+            groups.frames.get(f),
+            groups
+                .frame_group
+                .get(f)
+                .and_then(|&g| seed_group(groups, g)),
+        ) else {
+            continue;
+        };
+        for px in frame.px_t1 {
+            let Some((i, packed)) = grid.locate(px) else {
+                continue;
+            };
+            let seg = segment.get(i).copied().unwrap_or(0);
+            let run = groups_in(seeds, seg);
+            if seg == 0 || run.len() < 2 || !run.iter().any(|s| s.group == u32::from(g)) {
+                continue;
+            }
+            if let (Some(c @ 0), Some(q)) = (claim.get_mut(i), queue.get_mut(tail)) {
+                *c = g + 1;
+                *q = packed;
+                tail += 1;
+            }
+        }
+    }
+    // The best explaining group of a pixel is computed once, when a region first reaches
+    // it: key holds UNSEEN, HOLE (no observation: any region may pass), or group + 1
+    // (0: no group within tolerance).
+    key.fill(UNSEEN);
+    let k = input.intrinsics;
+    let (inv_fx, inv_fy) = (1.0 / k.fx, 1.0 / k.fy);
+    let explain = |j: usize, candidates: &[SegmentSeeds]| -> u32 {
+        let Some(s) = source.get(j).copied().filter(|&s| s != NONE) else {
+            return HOLE;
+        };
+        let (sx, sy) = Grid::unpack(s);
+        let (Some(z), Some([dx, dy])) = (
+            input.depth_t.get(sx, sy).copied().and_then(valid_depth),
+            input.flow.get(sx, sy).copied(),
+        ) else {
+            return HOLE;
+        };
+        let (u, v) = (sx as Real, sy as Real);
+        let p = Point3::new((u - k.cx) * z * inv_fx, (v - k.cy) * z * inv_fy, z);
+        let (ox, oy) = (u + dx, v + dy);
+        let mut best = (cfg.grow_tol_px * cfg.grow_tol_px, 0);
+        for &SegmentSeeds { group: g, .. } in candidates {
+            let Some(m) = motions.get(g as usize) else {
+                continue;
+            };
+            let q = m * p;
+            if q.z <= 1e-6 {
+                continue;
+            }
+            let inv_z = 1.0 / q.z;
+            let ex = k.fx * q.x * inv_z + k.cx - ox;
+            let ey = k.fy * q.y * inv_z + k.cy - oy;
+            let r2 = ex * ex + ey * ey;
+            if r2 <= best.0 {
+                best = (r2, g + 1);
+            }
+        }
+        best.1
+    };
+    while head < tail {
+        let Some(&p) = queue.get(head) else { break };
+        head += 1;
+        let i = grid.index(p);
+        let (Some(&seg), Some(&mine)) = (segment.get(i), claim.get(i)) else {
+            continue;
+        };
+        let candidates = groups_in(seeds, seg);
+        for (j, pj) in grid.neighbours(p) {
+            if segment.get(j) != Some(&seg) || claim.get(j) != Some(&0) {
+                continue;
+            }
+            let decision = match key.get(j).copied() {
+                Some(UNSEEN) => {
+                    let d = explain(j, candidates);
+                    if let Some(slot) = key.get_mut(j) {
+                        *slot = d;
+                    }
+                    d
+                }
+                Some(d) => d,
+                None => continue,
+            };
+            if (decision == HOLE || decision == u32::from(mine))
+                && let (Some(c), Some(q)) = (claim.get_mut(j), queue.get_mut(tail))
+            {
+                *c = mine;
+                *q = pj;
+                tail += 1;
+            }
+        }
+    }
 }
 
 /// Step 3, motions: each moving group's rigid motion in the camera frame ([`fit_motion`],
@@ -1068,6 +1111,80 @@ mod tests {
         let p = Point3::new(0.05, 0.03, 0.6);
         assert!((motions[0] * p - motion * p).norm() < 1e-5);
         assert_eq!(motions[1], Pose::identity());
+    }
+
+    #[test]
+    fn regions_grow_from_their_seeds_to_the_pixels_their_motion_explains_best() {
+        use crate::{Intrinsics, Twist, frames::BodyFrame, group::GroupInfo};
+        // One segment, 8x1 px at 0.6 m: the two left pixels did not move, the six right
+        // ones moved 2 px to the right (2 mm at fx = 600). Group 0 seeds at x = 0, group
+        // 1 at x = 7; growth that ignored the motions would meet in the middle.
+        let (w, h) = (8, 1);
+        let depth = [0.6f32; 8];
+        let flow: [[f32; 2]; 8] = core::array::from_fn(|x| [if x < 2 { 0.0 } else { 2.0 }, 0.0]);
+        let labels = [1u16; 8];
+        let input = MotionInput::new(
+            ImageView::packed(w, h, &labels).unwrap(),
+            ImageView::packed(w, h, &depth).unwrap(),
+            ImageView::packed(w, h, &depth).unwrap(),
+            ImageView::packed(w, h, &flow).unwrap(),
+            Intrinsics::new(600.0, 600.0, 4.0, 0.0).unwrap(),
+        )
+        .unwrap();
+        let seed_at = |x: Real| BodyFrame {
+            px_t1: [[x, 0.0]; 3],
+            ..BodyFrame::EMPTY
+        };
+        let frames = [seed_at(0.0), seed_at(7.0)];
+        let moving = GroupInfo {
+            frames: 1,
+            twist: Twist::ZERO,
+            moving: true,
+            label: 1,
+        };
+        let groups = FrameGroups {
+            frames: &frames,
+            frame_group: &[0, 1],
+            groups: &[moving, moving],
+            space_origin: Point3::origin(),
+        };
+        let motions = [
+            Pose::identity(),
+            Pose::from(Translation3::new(0.002, 0.0, 0.0)),
+        ];
+        let seeds = [
+            SegmentSeeds {
+                segment: 1,
+                group: 0,
+                seeds: 3,
+                label: 1,
+            },
+            SegmentSeeds {
+                segment: 1,
+                group: 1,
+                seeds: 3,
+                label: 2,
+            },
+        ];
+        let source: [u32; 8] = core::array::from_fn(|x| Grid::pack(x, 0));
+        let (mut key, mut claim, mut queue) = ([0u32; 8], [0u16; 8], [0u32; 8]);
+        grow_regions(
+            Grid {
+                width: w,
+                height: h,
+            },
+            &input,
+            &Config::PAPER,
+            &groups,
+            Regions {
+                segment: &[1; 8],
+                seeds: &seeds,
+                motions: &motions,
+                source: &source,
+            },
+            (&mut key, &mut claim, &mut queue),
+        );
+        assert_eq!(claim, [1, 1, 2, 2, 2, 2, 2, 2]);
     }
 
     #[test]

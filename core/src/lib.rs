@@ -32,7 +32,15 @@ pub use se3::{Pose, Twist};
 /// Every tunable of the algorithm, with the paper's defaults in [`Config::PAPER`].
 ///
 /// `#[non_exhaustive]`: outside the crate, start from [`Config::PAPER`] and assign fields.
+///
+/// With the `serde` feature, `Config` (de)serialises field by field under these names;
+/// a missing field keeps its [`Config::PAPER`] value and an unknown one is an error.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(default, deny_unknown_fields)
+)]
 #[non_exhaustive]
 pub struct Config {
     // --- CreateFrames -------------------------------------------------------------------
@@ -221,6 +229,11 @@ impl Default for Config {
         Self::PAPER
     }
 }
+
+/// The source text of this file: tools that show [`Config`]'s field docs at run time
+/// (`riseg config --print`) read them here, so the docs are written once.
+#[doc(hidden)]
+pub const CONFIG_SOURCE: &str = include_str!("lib.rs");
 
 /// Capacity bound of [`Config::max_clusters`] (fixed-size arrays in FindAction).
 pub const MAX_CLUSTERS: usize = 16;

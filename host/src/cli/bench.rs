@@ -622,6 +622,7 @@ mod command {
     use indicatif::{ProgressBar, ProgressStyle};
 
     use crate::cli::LayoutArg;
+    use crate::cli::config::ConfigArg;
 
     pub(in crate::cli) const BENCH_HELP: &str = "\
 The paper's experiment (its Table 1) on simulated scenes: static segmenter, RISeg and the \
@@ -631,7 +632,7 @@ Each scene is a table with 4-6 touching objects (the scenes of `riseg gen` with 
 seed and --layout: loose by default, packed or mixed; see `riseg gen --help`). On each, \
 the loop of Algorithm 1 runs with the built-in segmenter and optical flow: FindAction \
 picks a push from the static heatmap, the simulated arm makes it, UpdateMask corrects the \
-mask; at most 3 pushes, fewer when no push qualifies. Every frame is scored against the \
+mask; at most 3 pushes (core.max_pushes), fewer when no push qualifies. Every frame is scored against the \
 simulator's ground truth three times: the static segmentation of that frame, RISeg's \
 accumulated mask (at push 0 they are the same), and the motion ceiling.
 
@@ -684,11 +685,17 @@ Example:
         /// that frame moved part of a merged segment); and why the episode stopped.
         #[arg(long)]
         per_scene: bool,
+        #[command(flatten)]
+        config: ConfigArg,
     }
 
     pub(in crate::cli) fn command(args: &BenchArgs) -> anyhow::Result<()> {
+        let settings = args.config.load()?.settings();
         let cfg = BenchConfig {
             layout: args.layout.layout(),
+            core: settings.core,
+            segmenter: settings.segmenter,
+            flow: settings.flow,
             ..BenchConfig::new(args.scenes, args.seed)
         };
         let bar = ProgressBar::new(args.scenes as u64).with_style(
@@ -698,6 +705,13 @@ Example:
             .context("progress bar template")?,
         );
         let (report, results) = bench::run_bench(&cfg, |r| {
+            log::info!(
+                "scene {} (sim seed {}): {} pushes, {:?}",
+                r.scene,
+                r.sim_seed,
+                r.times.len().saturating_sub(1),
+                r.stop
+            );
             bar.set_message(format!(
                 "scene {}: {} pushes, {:?}",
                 r.scene,
@@ -769,7 +783,7 @@ Example:
             let mut json = serde_json::to_vec_pretty(&report).context("encoding the report")?;
             json.push(b'\n');
             write_atomic(path, &json).with_context(|| format!("writing {}", path.display()))?;
-            eprintln!("wrote {}", path.display());
+            log::info!("wrote {}", path.display());
         }
         Ok(())
     }

@@ -21,14 +21,15 @@
 use core::fmt::Write as _;
 use std::path::Path;
 
-use riseg_core::{Config, Intrinsics, action::Push};
+use riseg_core::{Intrinsics, action::Push};
 
 use crate::{
     cli::bench::{BenchConfig, SceneResult, run_bench, score_frame},
+    cli::config::Settings,
     cli::eval::PushReport,
     draw::{Clip, arrow, dot, label_colour, line, overlay_labels},
     eval::metrics::PushAverages,
-    flow::{DisFlow, FlowParams, viz::flow_to_rgb},
+    flow::{DisFlow, viz::flow_to_rgb},
     io::{
         image::{RgbImage, write_rgb8},
         write_atomic,
@@ -36,7 +37,7 @@ use crate::{
     rig::episode::{Decision, EpisodeFrame, Stop, run_episode},
     rig::robot::PushCommand,
     rig::tracker::{Observation, Tracker},
-    segment::{ClassicalSegmenter, SegmenterParams},
+    segment::ClassicalSegmenter,
     sim::{Layout, SimConfig, SimRig, SimScene},
 };
 
@@ -100,6 +101,7 @@ pub fn run_demo(
     out: &Path,
     seed: u64,
     layout: Layout,
+    settings: &Settings,
     mut on_frame: impl FnMut(usize),
 ) -> anyhow::Result<DemoReport> {
     use anyhow::Context as _;
@@ -108,9 +110,9 @@ pub fn run_demo(
         .with_context(|| format!("building simulated {layout} scene {seed}"))?;
     let mut rig = SimRig::new(sim);
     let mut tracker = Tracker::new(
-        ClassicalSegmenter::new(SegmenterParams::default())?,
-        DisFlow::new(FlowParams::MEDIUM)?,
-        Config::PAPER,
+        ClassicalSegmenter::new(settings.segmenter)?,
+        DisFlow::new(settings.flow)?,
+        settings.core,
     )?;
     let mut frames = Vec::new();
     let summary = run_episode(
@@ -133,7 +135,7 @@ pub fn run_demo(
     };
     let mut md = markdown(&report);
     md.push('\n');
-    md.push_str(&bench_spread(&report)?);
+    md.push_str(&bench_spread(&report, settings)?);
     let path = out.join("report.md");
     write_atomic(&path, md.as_bytes()).with_context(|| format!("writing {}", path.display()))?;
     Ok(report)
@@ -287,9 +289,12 @@ pub const SPREAD_SCENES: usize = 23;
 ///
 /// # Errors
 /// The bench's errors.
-pub fn bench_spread(report: &DemoReport) -> anyhow::Result<String> {
+pub fn bench_spread(report: &DemoReport, settings: &Settings) -> anyhow::Result<String> {
     let cfg = BenchConfig {
         layout: report.layout,
+        core: settings.core,
+        segmenter: settings.segmenter,
+        flow: settings.flow,
         ..BenchConfig::new(SPREAD_SCENES, 1)
     };
     let (_, scenes) = run_bench(&cfg, |_| {})?;
@@ -415,6 +420,7 @@ mod command {
     use indicatif::{ProgressBar, ProgressStyle};
 
     use crate::cli::LayoutArg;
+    use crate::cli::config::ConfigArg;
 
     pub(in crate::cli) const DEMO_HELP: &str = "\
 Run the whole loop on a simulated scene and write a report (the default command).
@@ -448,6 +454,8 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
         /// Output folder (created if missing; earlier demo files in it are replaced).
         #[arg(long, default_value = "riseg-demo")]
         out: PathBuf,
+        #[command(flatten)]
+        config: ConfigArg,
     }
 
     impl Default for DemoArgs {
@@ -456,11 +464,13 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
                 layout: LayoutArg::Packed,
                 seed: None,
                 out: PathBuf::from("riseg-demo"),
+                config: ConfigArg::default(),
             }
         }
     }
 
     pub(in crate::cli) fn command(args: &DemoArgs) -> anyhow::Result<()> {
+        let settings = args.config.load()?.settings();
         let bar = ProgressBar::new(4).with_style(
             ProgressStyle::with_template("{spinner} {msg} {elapsed}")
                 .context("progress bar template")?,
@@ -471,7 +481,7 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
         let seed = args
             .seed
             .unwrap_or_else(|| crate::cli::demo::default_seed(layout));
-        let report = crate::cli::demo::run_demo(&args.out, seed, layout, |t| {
+        let report = crate::cli::demo::run_demo(&args.out, seed, layout, &settings, |t| {
             bar.set_message(format!(
                 "frame {t} done; pushing, rendering frame {}",
                 t + 1

@@ -576,10 +576,11 @@ pub fn evaluate_ceiling(
 mod command {
     use std::path::PathBuf;
 
+    use crate::cli::config::ConfigArg;
     use crate::cli::eval::{self, DatasetPoses};
     use crate::eval::ceiling::CeilingParams;
     use crate::io::scene::{self};
-    use crate::segment::{ClassicalSegmenter, SegmenterParams};
+    use crate::segment::ClassicalSegmenter;
     use anyhow::Context as _;
     use clap::Args;
     use indicatif::{ProgressBar, ProgressStyle};
@@ -638,6 +639,10 @@ Example:
         /// {"pushes": [ROW..]}, plus "ceiling": [ROW..] when the motion ceiling is scored.
         #[arg(long, value_name = "FILE")]
         json: Option<PathBuf>,
+        /// Settings file (TOML): its [segmenter] is the static segmenter of the motion
+        /// ceiling (give `riseg run` the same file). See `riseg config --help`.
+        #[arg(long, value_name = "FILE")]
+        config: Option<PathBuf>,
     }
 
     pub(in crate::cli) fn command(args: &EvalArgs) -> anyhow::Result<()> {
@@ -654,7 +659,8 @@ Example:
                 .context("progress bar template")?,
         );
         // The static segmenter `riseg run` uses.
-        let mut segmenter = ClassicalSegmenter::new(SegmenterParams::default())?;
+        let settings = ConfigArg::from(args.config.clone()).load()?.settings();
+        let mut segmenter = ClassicalSegmenter::new(settings.segmenter)?;
         let report = eval::evaluate(&pairs, || bar.inc(1)).and_then(|mut report| {
             if let DatasetPoses::All(scenes) = &poses {
                 let params = CeilingParams::DEFAULT;
@@ -666,7 +672,7 @@ Example:
         bar.finish_and_clear();
         let report = report?;
         if let DatasetPoses::Missing(scene) = &poses {
-            eprintln!(
+            log::warn!(
                 "motion ceiling not scored: {} has no {}",
                 scene.display(),
                 scene::POSES_FILE
@@ -675,7 +681,7 @@ Example:
         print!("{report}");
         if let Some(path) = &args.json {
             report.write_json(path)?;
-            eprintln!("wrote {}", path.display());
+            log::info!("wrote {}", path.display());
         }
         Ok(())
     }

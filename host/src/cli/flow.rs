@@ -48,6 +48,10 @@ pub(super) struct FlowArgs {
     /// Worker threads; 0 uses every core.
     #[arg(long, default_value_t = 0)]
     threads: usize,
+    /// Settings file (TOML): its [flow] keys replace those of --preset (the other
+    /// sections are checked, not used). See `riseg config --help`.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
 }
 
 /// `FlowParams` presets by name.
@@ -79,6 +83,9 @@ fn view(img: &RgbImage) -> anyhow::Result<RgbView<'_>> {
 }
 
 pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
+    let params = crate::cli::config::ConfigArg::from(args.config.clone())
+        .load()?
+        .flow_over(args.preset.params())?;
     let first = read_png_as_rgb8(&args.first)?;
     let second = read_png_as_rgb8(&args.second)?;
     if (first.width(), first.height()) != (second.width(), second.height()) {
@@ -92,7 +99,7 @@ pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
             second.height()
         );
     }
-    let estimator = DisFlow::new(args.preset.params())?.with_threads(args.threads)?;
+    let estimator = DisFlow::new(params)?.with_threads(args.threads)?;
     let flow = estimator
         .estimate(view(&first)?, view(&second)?)
         .with_context(|| {

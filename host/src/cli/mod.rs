@@ -1,6 +1,7 @@
 //! The `riseg` subcommands, one module each, and what only commands use.
 
 pub mod bench;
+pub mod config;
 pub mod demo;
 pub mod eval;
 mod flow;
@@ -23,6 +24,10 @@ use crate::sim::Layout;
 #[derive(Debug, Parser)]
 #[command(name = "riseg", version, about, long_about)]
 struct Cli {
+    /// More diagnostics on stderr: -v notes what runs, -vv adds debugging detail. Without
+    /// it, RUST_LOG sets the level and modules (RUST_LOG=riseg=debug); warnings by default.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
     #[command(subcommand)]
     command: Option<Command>,
 }
@@ -115,6 +120,21 @@ enum Command {
     /// Run RISeg on recorded scenes (the pushes already happened) and write its masks.
     #[command(long_about = run::RUN_HELP)]
     Run(run::RunArgs),
+    /// Print every setting --config can change, with its default (`riseg config --print`).
+    ///
+    /// `riseg config --print` writes every setting with its default, meaning and unit, as
+    /// TOML.
+    ///
+    /// A settings file has optional sections [core] (the algorithm: riseg-core's Config),
+    /// [segmenter] (the built-in static segmenter) and [flow] (the built-in optical flow);
+    /// every key is optional and a missing key keeps its default. demo, bench, run and eval
+    /// read all three sections, segment [segmenter], flow [flow] (over its --preset).
+    ///
+    /// Example:
+    ///   riseg config --print > riseg.toml   (edit, then)
+    ///   riseg bench --config riseg.toml
+    #[command(verbatim_doc_comment)]
+    Config(config::ConfigCmdArgs),
 }
 
 /// `--layout`: the simulator's scene families by name.
@@ -142,6 +162,7 @@ impl LayoutArg {
 #[must_use]
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
+    init_logger(cli.verbose);
     let result = match cli
         .command
         .unwrap_or_else(|| Command::Demo(demo::DemoArgs::default()))
@@ -153,6 +174,7 @@ pub fn main() -> ExitCode {
         Command::Flow(args) => flow::command(&args),
         Command::Bench(args) => bench::command(&args),
         Command::Run(args) => run::command(&args),
+        Command::Config(args) => config::command(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -161,6 +183,31 @@ pub fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// Sends `log` records to stderr as `level: message`: warnings and errors by default,
+/// `-v` info, `-vv` debug, `-vvv` trace; without `-v`, `RUST_LOG` decides (env_logger's
+/// syntax, `RUST_LOG=riseg::cli::bench=debug`).
+fn init_logger(verbose: u8) {
+    use std::io::Write as _;
+    let mut logger = env_logger::Builder::new();
+    logger.format(|out, record| {
+        writeln!(
+            out,
+            "{}: {}",
+            record.level().as_str().to_ascii_lowercase(),
+            record.args()
+        )
+    });
+    match (verbose, std::env::var("RUST_LOG")) {
+        (0, Ok(filters)) => logger.parse_filters(&filters),
+        (0, Err(_)) => logger.filter_level(log::LevelFilter::Warn),
+        (1, _) => logger.filter_level(log::LevelFilter::Info),
+        (2, _) => logger.filter_level(log::LevelFilter::Debug),
+        _ => logger.filter_level(log::LevelFilter::Trace),
+    };
+    // Only fails when a logger is already set (not in the binary).
+    let _ = logger.try_init();
 }
 
 /// `error` and its causes joined by ": ", each cause once: many of riseg's errors already

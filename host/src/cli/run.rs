@@ -311,10 +311,11 @@ pub fn run_scene<S: StaticSegmenter, F: FlowEstimator>(
 mod command {
     use std::path::PathBuf;
 
+    use crate::cli::config::ConfigArg;
     use crate::cli::run::{InputDirs, run_scene};
-    use crate::flow::{DisFlow, FlowParams};
+    use crate::flow::DisFlow;
     use crate::rig::tracker::Tracker;
-    use crate::segment::{ClassicalSegmenter, SegmenterParams};
+    use crate::segment::ClassicalSegmenter;
     use anyhow::{Context as _, bail};
     use clap::Args;
     use indicatif::{ProgressBar, ProgressStyle};
@@ -374,6 +375,8 @@ Examples:
         /// instead of segmenting.
         #[arg(long, value_name = "STATIC")]
         static_dir: Option<PathBuf>,
+        #[command(flatten)]
+        config: ConfigArg,
     }
 
     pub(in crate::cli) fn command(args: &RunArgs) -> anyhow::Result<()> {
@@ -388,10 +391,11 @@ Examples:
             }
             (None, None) => bail!("give --scene DIR or --dataset DIR"),
         };
+        let settings = args.config.load()?.settings();
         let mut tracker = Tracker::new(
-            ClassicalSegmenter::new(SegmenterParams::default())?,
-            DisFlow::new(FlowParams::MEDIUM)?,
-            riseg_core::Config::PAPER,
+            ClassicalSegmenter::new(settings.segmenter)?,
+            DisFlow::new(settings.flow)?,
+            settings.core,
         )?;
         let bar = ProgressBar::new(scenes.len() as u64).with_style(
             ProgressStyle::with_template(

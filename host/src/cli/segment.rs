@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use crate::cli::config::ConfigArg;
 use crate::io::image::{Image, ImageIoError};
 use crate::io::scene::{self, SceneCamera};
 use crate::segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams, viz};
@@ -44,9 +45,14 @@ pub(super) struct SegmentArgs {
     /// orange 120-149, green >= 150).
     #[arg(long, value_name = "PNG")]
     viz: Option<PathBuf>,
-    /// Seed of the table-plane RANSAC (same inputs and seed, same output).
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
+    /// Seed of the table-plane RANSAC (same inputs and seed, same output) [default: 1, or
+    /// segmenter.seed of --config].
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Settings file (TOML): its [segmenter] section replaces the segmenter's defaults
+    /// (the other sections are checked, not used). See `riseg config --help`.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
 }
 
 /// The camera, colour and depth files of `riseg segment`, from either input form.
@@ -71,6 +77,10 @@ pub(super) fn segment_inputs(args: &SegmentArgs) -> anyhow::Result<(PathBuf, Pat
 }
 
 pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
+    let params = ConfigArg::from(args.config.clone())
+        .load()?
+        .settings()
+        .segmenter;
     let (camera_path, rgb_path, depth_path) = segment_inputs(args)?;
     let camera = SceneCamera::read(&camera_path)?;
     let (width, height) = (camera.width, camera.height);
@@ -87,8 +97,8 @@ pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
     let (w, h) = (width as usize, height as usize);
     let frame = RgbdFrame::new(w, h, rgb.as_slice(), &depth_m)?;
     let mut segmenter = ClassicalSegmenter::new(SegmenterParams {
-        seed: args.seed,
-        ..SegmenterParams::default()
+        seed: args.seed.unwrap_or(params.seed),
+        ..params
     })?;
     let out = segmenter
         .segment_detailed(&frame, &camera.intrinsics())

@@ -47,7 +47,11 @@ use std::sync::Arc;
 /// Parameters of [`DisFlow`]. Start from a preset ([`FlowParams::ULTRAFAST`],
 /// [`FlowParams::FAST`], [`FlowParams::MEDIUM`], [`FlowParams::FINE`]) and change fields
 /// as needed.
-#[derive(Debug, Clone, Copy, PartialEq)]
+///
+/// (De)serialises field by field under these names (the `[flow]` section of a `riseg
+/// --config` file); an unknown field is an error.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 #[non_exhaustive]
 pub struct FlowParams {
     /// Side of a square patch, pixels: a multiple of 4 in `4..=32`.

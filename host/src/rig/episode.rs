@@ -147,11 +147,18 @@ where
         .map_err(EpisodeError::Caller)?;
         match decision {
             Decision::Push { command, .. } => {
+                log::debug!(
+                    "frame {t}: push from {:?} m along {:?}, {} m (robot frame)",
+                    command.start_robot_m.coords.as_slice(),
+                    command.direction_robot.as_slice(),
+                    command.length_m
+                );
                 robot.execute(&command)?;
                 pushes.push(command);
                 t += 1;
             }
             Decision::Stop(stop) => {
+                log::debug!("frame {t}: stop, {stop:?}");
                 return Ok(EpisodeSummary {
                     frames: t + 1,
                     pushes,

@@ -17,7 +17,11 @@ const HEIGHT_SIGMAS: f32 = 4.0;
 
 /// Every tunable of the classical segmenter. Start from [`SegmenterParams::default`] and
 /// assign fields; [`SegmenterParams::check`] validates them.
-#[derive(Debug, Clone, Copy, PartialEq)]
+///
+/// (De)serialises field by field under these names (the `[segmenter]` section of a
+/// `riseg --config` file); a missing field keeps its default, an unknown one is an error.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct SegmenterParams {
     // --- Depth noise ------------------------------------------------------------------
     /// Standard deviation of depth at 1 m, metres; it scales with `z²`. 2 mm fits a

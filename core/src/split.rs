@@ -470,27 +470,47 @@ mod tests {
         (frames, body)
     }
 
-    fn run(frames: &[BodyFrame]) -> (usize, [u16; 200], [GroupInfo; 8]) {
+    /// Runs the pass on `frames`, all in group 0 (`first`), with room for `capacity`
+    /// groups.
+    fn run_with(
+        frames: &[BodyFrame],
+        first: GroupInfo,
+        capacity: usize,
+    ) -> (usize, [u16; 200], [GroupInfo; 8]) {
         let mut frame_group = [0u16; 200];
         let mut groups = [GroupInfo::default(); 8];
-        groups[0] = GroupInfo {
-            frames: frames.len() as u32,
-            moving: true,
-            label: 1,
-            ..GroupInfo::default()
-        };
+        groups[0] = first;
         let mut side = [0u32; 200];
         let count = split_mixed_groups(
             frames,
             &Point3::new(0.0, 0.0, 0.6),
             &Config::PAPER,
             &mut frame_group[..frames.len()],
-            &mut groups,
+            &mut groups[..capacity],
             1,
             &mut side,
         );
         (count, frame_group, groups)
     }
+
+    /// [`run_with`] a moving group 0 and room for 8 groups.
+    fn run(frames: &[BodyFrame]) -> (usize, [u16; 200], [GroupInfo; 8]) {
+        let moving = GroupInfo {
+            frames: frames.len() as u32,
+            moving: true,
+            label: 1,
+            ..GroupInfo::default()
+        };
+        run_with(frames, moving, 8)
+    }
+
+    /// A still group 0 of 160 frames.
+    const STILL: GroupInfo = GroupInfo {
+        frames: 160,
+        twist: Twist::ZERO,
+        moving: false,
+        label: 1,
+    };
 
     fn push(dx_m: Real, yaw_deg: Real) -> Pose {
         Pose::from_parts(
@@ -528,24 +548,7 @@ mod tests {
     #[test]
     fn a_neighbour_dragged_a_few_millimetres_leaves_the_still_group() {
         let (frames, body) = two_boxes([Pose::identity(), push(0.004, 0.0)], 0.0015, 80);
-        let frames = &frames[..160];
-        let mut frame_group = [0u16; 200];
-        let mut groups = [GroupInfo::default(); 8];
-        groups[0] = GroupInfo {
-            frames: 160,
-            label: 1,
-            ..GroupInfo::default()
-        };
-        let mut side = [0u32; 200];
-        let count = split_mixed_groups(
-            frames,
-            &Point3::new(0.0, 0.0, 0.6),
-            &Config::PAPER,
-            &mut frame_group[..160],
-            &mut groups,
-            1,
-            &mut side,
-        );
+        let (count, frame_group, groups) = run_with(&frames[..160], STILL, 8);
         assert_eq!(count, 2);
         // The still box keeps the still group; the dragged one moves.
         for (g, b) in frame_group.iter().zip(&body).take(160) {
@@ -558,23 +561,7 @@ mod tests {
     fn a_still_group_that_moved_three_millimetres_is_moving_and_a_still_one_is_not() {
         for (dx_m, moving) in [(0.003, true), (0.0, false)] {
             let (frames, _) = two_boxes([push(dx_m, 0.0), push(dx_m, 0.0)], 0.0015, 80);
-            let mut frame_group = [0u16; 160];
-            let mut groups = [GroupInfo::default(); 4];
-            groups[0] = GroupInfo {
-                frames: 160,
-                label: 1,
-                ..GroupInfo::default()
-            };
-            let mut side = [0u32; 160];
-            let count = split_mixed_groups(
-                &frames[..160],
-                &Point3::new(0.0, 0.0, 0.6),
-                &Config::PAPER,
-                &mut frame_group,
-                &mut groups,
-                1,
-                &mut side,
-            );
+            let (count, _, groups) = run_with(&frames[..160], STILL, 4);
             assert_eq!(count, 1, "one body");
             assert_eq!(groups[0].moving, moving, "{dx_m} m");
             if moving {
@@ -605,18 +592,7 @@ mod tests {
         let (frames, _) = two_boxes([push(0.02, 0.0), push(0.02, 10.0)], 0.0005, 10);
         assert_eq!(run(&frames[..20]).0, 1, "20 frames: two parts need 15 each");
         let (frames, _) = two_boxes([push(0.02, 0.0), push(0.02, 10.0)], 0.0005, 80);
-        let mut frame_group = [0u16; 160];
-        let mut groups = [GroupInfo::default(); 1];
-        let mut side = [0u32; 160];
-        let count = split_mixed_groups(
-            &frames[..160],
-            &Point3::new(0.0, 0.0, 0.6),
-            &Config::PAPER,
-            &mut frame_group,
-            &mut groups,
-            1,
-            &mut side,
-        );
+        let (count, _, _) = run_with(&frames[..160], STILL, 1);
         assert_eq!(count, 1, "no room for a second group");
     }
 }

@@ -114,7 +114,7 @@ pub struct MaskScratch<'a> {
 pub struct SegmentSeeds {
     /// Segment id (step 2).
     pub segment: u32,
-    /// The group the seeds are from ([`seed_group`]'s id).
+    /// The group the seeds are from (moving groups by id, every still group as the first one).
     pub group: u32,
     /// Seed pixels: three per frame of the group whose tracked pixels lie in the segment.
     pub seeds: u32,

@@ -38,6 +38,7 @@ use riseg_core::{Config, Pose};
 use serde::{Deserialize, Serialize};
 
 use crate::{
+    cli::config::Settings,
     cli::eval::{EvalReport, PushReport, write_ceiling_shares},
     eval::ceiling::{
         CeilingFrame, CeilingParams, MotionCeiling, moved, poses_by_label, same_motion,
@@ -113,17 +114,22 @@ pub struct BenchConfig {
 }
 
 impl BenchConfig {
-    /// The paper's settings, the built-in segmenter and DIS "medium", on
-    /// [`Layout::Loose`] scenes.
+    /// What every command runs without `--config` ([`Settings::default`]: the paper's
+    /// settings, the built-in segmenter and DIS "medium"), on [`Layout::Loose`] scenes.
     #[must_use]
     pub fn new(scenes: usize, seed: u64) -> Self {
+        let Settings {
+            core,
+            segmenter,
+            flow,
+        } = Settings::default();
         Self {
             scenes,
             seed,
             layout: Layout::Loose,
-            core: Config::PAPER,
-            segmenter: SegmenterParams::default(),
-            flow: FlowParams::MEDIUM,
+            core,
+            segmenter,
+            flow,
         }
     }
 }

@@ -6,8 +6,8 @@
 //! devices, file I/O, the simulator, the built-in segmenter and optical flow, scoring and
 //! the CLI. Modules by role, each importing only the ones below it:
 //!
-//! - [`cli`]: the `riseg` subcommands (`demo`, `bench`, `gen`, `run`, `eval`, ...).
-//! - [`sim`]: the simulated tabletop (rapier3d physics, parry3d ray-cast RGB-D, exact
+//! - `cli` (feature `cli`): the `riseg` subcommands (`demo`, `bench`, `gen`, `run`, `eval`, ...).
+//! - `sim` (feature `sim`): the simulated tabletop (rapier3d physics, parry3d ray-cast RGB-D, exact
 //!   ground truth): one camera and one robot for the loop.
 //! - [`rig`]: the loop of Algorithm 1 and its seams: camera, tracker, episode, robot.
 //! - [`segment`]: the built-in static segmenter (labels + FindAction's heatmap).
@@ -19,8 +19,9 @@
 //!
 //! ## Features
 //!
-//! - `cli` (default): the `riseg` binary and [`cli`] (clap, indicatif, anyhow); implies `sim`.
-//! - `sim` (default): the simulator [`sim`] (rapier3d, parry3d); implies `threads`.
+//! - `cli` (default): the `riseg` binary and the `cli` module (clap, indicatif, anyhow);
+//!   implies `sim`.
+//! - `sim` (default): the simulator, the `sim` module (rapier3d, parry3d); implies `threads`.
 //! - `threads` (default): rayon in the optical flow and the renderer.
 //!
 //! `--no-default-features` leaves the pure parts (flow, segment, eval, io, rig, testkit),

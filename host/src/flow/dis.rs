@@ -18,8 +18,9 @@
 //!
 //! # Threads
 //! Work is split over rayon tasks (patch rows, pixel rows). [`DisFlow::new`] uses rayon's
-//! global pool; [`DisFlow::with_threads`] gives the estimator its own pool (`1` for
-//! single-thread benchmarks). The output is bit-identical for any thread count.
+//! global pool; `DisFlow::with_threads` (feature `threads`) gives the estimator its own
+//! pool (`1` for single-thread benchmarks). The output is bit-identical for any thread
+//! count.
 //!
 //! # Examples
 //! ```

@@ -9,7 +9,8 @@
 //! 4. [`robot`]: [`plan_push`](robot::plan_push) maps FindAction's push into the robot
 //!    frame and checks the arm's limits; the [`Robot`](robot::Robot) trait executes it.
 //!
-//! The simulator ([`crate::sim`]) is one camera and one robot; the loop never knows which.
+//! The simulator (`crate::sim`, feature `sim`) is one camera and one robot; the loop never
+//! knows which.
 
 pub mod camera;
 pub mod episode;

@@ -2,8 +2,6 @@
 #![no_std]
 #![deny(missing_docs)]
 
-#[cfg(feature = "alloc")]
-extern crate alloc;
 #[cfg(test)]
 extern crate std;
 
@@ -15,13 +13,15 @@ pub mod group;
 pub mod image;
 pub mod mask;
 pub mod math;
-#[cfg(feature = "alloc")]
-pub mod owned;
+#[cfg(test)]
+mod no_panic;
 pub mod pipeline;
 pub mod rng;
 pub mod se3;
 pub mod split;
 pub mod synth;
+#[cfg(test)]
+mod test_workspace;
 
 pub use camera::Intrinsics;
 pub use error::{Buffer, Error};

@@ -204,7 +204,7 @@ pub fn update_mask_observed(
         twist_groups,
         ws.group.parent,
     );
-    grouping.mixed_splits = grouping.count - twist_groups;
+    grouping.mixed_splits = grouping.count.saturating_sub(twist_groups);
     on_stage(Stage::Grouping);
     let groups = FrameGroups {
         frames: frame_list,
@@ -282,11 +282,11 @@ pub(crate) mod tests {
     use super::*;
     use crate::{
         Pose,
-        owned::WorkspaceBuf,
         synth::{
             SynthBox,
             fixture::{Rendered, box_at, render, spin_about},
         },
+        test_workspace::WorkspaceBuf,
     };
 
     /// Runs one step from the accumulated mask `labels_t` and the static mask `static_t1`

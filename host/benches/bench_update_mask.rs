@@ -4,8 +4,8 @@
 
 use core::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
+use riseg::rig::workspace::WorkspaceBuf;
 use riseg::testkit::SyntheticStep;
-use riseg_core::owned::WorkspaceBuf;
 use riseg_core::{
     Config,
     frames::{compute_twists, create_frames},

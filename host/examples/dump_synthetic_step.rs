@@ -15,8 +15,8 @@
 use std::{fs, path::Path};
 
 use anyhow::{Context, Result, bail};
+use riseg::rig::workspace::WorkspaceBuf;
 use riseg::testkit::SyntheticStep;
-use riseg_core::owned::WorkspaceBuf;
 use riseg_core::{Config, pipeline::update_mask};
 
 fn main() -> Result<()> {

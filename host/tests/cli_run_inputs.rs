@@ -23,12 +23,11 @@ use riseg::{
     io::image::{FlowImage, Gray8Image, Gray16Image},
     io::scene::{Scene, frame_file},
     rig::tracker::{GivenInputs, TrackError, Tracker},
+    rig::workspace::WorkspaceBuf,
     segment::{ClassicalSegmenter, HEAT_CERTAIN, SegmenterParams},
     testkit::SyntheticStep,
 };
-use riseg_core::{
-    Config, ImageView, frames::MotionInput, owned::WorkspaceBuf, pipeline::update_mask,
-};
+use riseg_core::{Config, ImageView, frames::MotionInput, pipeline::update_mask};
 
 const SCENE: &str = "scene_000";
 

@@ -28,11 +28,11 @@
 
 use std::collections::HashSet;
 
+use riseg::rig::workspace::ActionBuf;
 use riseg::segment::{
     ClassicalSegmenter, HEAT_CERTAIN, HEAT_UNCERTAIN, RgbdFrame, SegmenterParams,
 };
 use riseg::sim::{SimScene, TOUCH_GAP_M};
-use riseg_core::owned::ActionBuf;
 use riseg_core::{Config, ImageView, action::find_action};
 
 /// Scene seeds `FIRST_SEED..FIRST_SEED + SCENES`; `RISEG_CALIB_FIRST_SEED` moves the window

@@ -2,8 +2,8 @@
 //! touching boxes, merged into one segment, three of them moved) through riseg-core with
 //! the host's Vec-backed workspace.
 
+use riseg::rig::workspace::WorkspaceBuf;
 use riseg::testkit::SyntheticStep;
-use riseg_core::owned::WorkspaceBuf;
 use riseg_core::{Config, pipeline::update_mask};
 
 fn run(cfg: &Config) -> (SyntheticStep, Vec<u16>) {

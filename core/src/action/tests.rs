@@ -6,7 +6,7 @@ use std::{vec, vec::Vec};
 
 use super::*;
 use crate::math::{round, sqrt};
-use crate::owned::ActionBuf;
+use crate::test_workspace::ActionBuf;
 
 const W: usize = 320;
 const H: usize = 240;

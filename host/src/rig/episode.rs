@@ -15,7 +15,6 @@
 use riseg_core::{
     Config, ImageView,
     action::{ActionReport, Push, find_action},
-    owned::ActionBuf,
     pipeline::RisegLoop,
 };
 
@@ -24,6 +23,7 @@ use crate::{
     rig::camera::{Camera, CameraError, CameraFrame},
     rig::robot::{PushCommand, PushRefused, Robot, RobotError, RobotSetup, plan_push},
     rig::tracker::{Observation, TrackError, Tracker},
+    rig::workspace::ActionBuf,
     segment::StaticSegmenter,
 };
 

@@ -16,3 +16,4 @@ pub mod camera;
 pub mod episode;
 pub mod robot;
 pub mod tracker;
+pub mod workspace;

@@ -26,13 +26,13 @@ use riseg_core::{
     Config, ImageView,
     frames::{BodyFrame, MotionInput},
     group::NO_GROUP,
-    owned::WorkspaceBuf,
     pipeline::{Stage, StepReport, update_mask_observed},
 };
 
 use crate::{
     flow::{Flow, FlowError, FlowEstimator, RgbView},
     rig::camera::CameraFrame,
+    rig::workspace::WorkspaceBuf,
     segment::{SegmentError, Segmentation, StaticSegmenter},
 };
 

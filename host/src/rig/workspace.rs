@@ -1,12 +1,9 @@
-//! `Vec`-backed storage for the caller-provided [`Workspace`] and [`ActionScratch`], sized
-//! once for a config and image size and reused across steps (no allocation per step).
-//!
-//! Only with the `alloc` feature: the algorithm itself never allocates, this is the
-//! convenience for callers that have a heap (the host crate, tests, wasm).
+//! `Vec`-backed storage for riseg-core's caller-provided [`Workspace`] and
+//! [`ActionScratch`], sized once for a config and image size and reused across steps (no
+//! allocation per step). riseg-core itself never allocates; this is the convenience for
+//! callers with a heap.
 
-use alloc::{vec, vec::Vec};
-
-use crate::{
+use riseg_core::{
     Config, Pose, Real, Twist,
     action::{ActionScratch, ActionScratchLen},
     frames::{BodyFrame, FrameSample},

@@ -4,17 +4,20 @@
 //! `Err`, never a panic. (The fuzz targets of a later issue go further; this runs in
 //! every `cargo test`.)
 
+use std::{vec, vec::Vec};
+
 use nalgebra::Point3;
 use proptest::prelude::*;
-use riseg_core::{
+
+use crate::{
     Config, ImageView, Intrinsics,
     action::find_action,
     frames::MotionInput,
-    owned::{ActionBuf, WorkspaceBuf},
     pipeline::update_mask,
+    test_workspace::{ActionBuf, WorkspaceBuf},
 };
 
-#[path = "common/uniform.rs"]
+#[path = "../tests/common/uniform.rs"]
 mod uniform;
 
 use uniform::uniform;

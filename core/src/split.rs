@@ -93,34 +93,25 @@ pub fn split_mixed_groups(
                 }
             }
             let label = groups.get(g).map_or(0, |info| info.label);
-            let to_space = Translation3::from(-space_origin.coords);
-            let info = |motion: &Pose, frames: u32, moved_m: Real| {
-                let twist = Twist::log(&(to_space * motion * to_space.inverse()));
-                let moving = twist.norm_squared(cfg.length_scale_m)
-                    >= cfg.static_below_m * cfg.static_below_m
-                    || moved_m >= MIN_MOTION_GAP_M;
-                GroupInfo {
-                    frames,
-                    twist,
-                    moving,
-                    label,
-                }
+            let info = |part: &Part| GroupInfo {
+                frames: part.frames,
+                label,
+                ..fitted(&part.motion, part.moved_m, space_origin, cfg)
             };
             if let Some(slot) = groups.get_mut(g) {
-                *slot = info(&new.keep.motion, new.keep.frames, new.keep.moved_m);
+                *slot = info(&new.keep);
             }
             if let Some(slot) = groups.get_mut(count) {
-                *slot = info(&new.split.motion, new.split.frames, new.split.moved_m);
+                *slot = info(&new.split);
             }
             count += 1;
-            continue; // look at the smaller group again: a third body may remain
+            continue; // look at the kept part again: a third body may remain
         }
         g += 1;
     }
     // A still group whose points moved by the motion gap moved: a box dragged 3 mm has
     // a twist below the noise floor, but its fit is certain, and CorrectMask must grow
     // it by that motion, not the identity.
-    let to_space = Translation3::from(-space_origin.coords);
     for (id, info) in groups.iter_mut().enumerate().take(count) {
         if info.moving {
             continue;
@@ -135,12 +126,32 @@ pub fn split_mixed_groups(
             continue;
         };
         let c = Point3::from(centroid / n);
-        if (motion * c - c).norm() >= MIN_MOTION_GAP_M {
-            info.moving = true;
-            info.twist = Twist::log(&(to_space * motion * to_space.inverse()));
+        let moved_m = (motion * c - c).norm();
+        if moved_m >= MIN_MOTION_GAP_M {
+            *info = GroupInfo {
+                frames: info.frames,
+                label: info.label,
+                ..fitted(&motion, moved_m, space_origin, cfg)
+            };
         }
     }
     count
+}
+
+/// The twist (space frame at `space_origin`) of a fitted camera-frame `motion`, and
+/// whether it moved: its twist reaches [`Config::static_below_m`] or it moves the fitted
+/// points' centroid by `moved_m` >= [`MIN_MOTION_GAP_M`]. Frames and label are left
+/// default.
+fn fitted(motion: &Pose, moved_m: Real, space_origin: &Point3<Real>, cfg: &Config) -> GroupInfo {
+    let to_space = Translation3::from(-space_origin.coords);
+    let twist = Twist::log(&(to_space * motion * to_space.inverse()));
+    let moving = twist.norm_squared(cfg.length_scale_m) >= cfg.static_below_m * cfg.static_below_m
+        || moved_m >= MIN_MOTION_GAP_M;
+    GroupInfo {
+        twist,
+        moving,
+        ..GroupInfo::default()
+    }
 }
 
 /// One part of an accepted split.

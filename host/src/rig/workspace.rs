@@ -75,7 +75,7 @@ impl WorkspaceBuf {
         &self.len
     }
 
-    /// Lends the buffers to [`crate::pipeline::update_mask`].
+    /// Lends the buffers to [`riseg_core::pipeline::update_mask`].
     pub fn view(&mut self) -> Workspace<'_> {
         Workspace {
             samples: &mut self.samples,
@@ -134,7 +134,7 @@ impl ActionBuf {
         }
     }
 
-    /// Lends the buffers to [`crate::action::find_action`].
+    /// Lends the buffers to [`riseg_core::action::find_action`].
     pub fn view(&mut self) -> ActionScratch<'_> {
         ActionScratch {
             certain: &mut self.certain,

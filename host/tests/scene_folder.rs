@@ -1,5 +1,6 @@
 //! The scene folder reader and writer: round trip, and every kind of bad folder gives an
-//! error whose message names the file at fault.
+//! error whose message names the file at fault; read from memory, the same folder gives
+//! the same scene or the same message.
 
 #![allow(
     clippy::unwrap_used,
@@ -13,6 +14,7 @@ use std::{
 
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use riseg::{
+    io::files::MemoryFiles,
     io::image::{FlowImage, Gray16Image, RgbImage, write_gray16},
     io::scene::{ObjectPose, PushAction, Scene, SceneCamera, SceneError, list_scenes},
     rig::camera::SceneReplay,
@@ -89,6 +91,23 @@ fn temp_root(tag: &str) -> PathBuf {
     dir
 }
 
+/// Every file below `dir`, in memory under the same paths.
+fn in_memory(dir: &Path) -> MemoryFiles {
+    fn add(files: &mut MemoryFiles, dir: &Path) {
+        for entry in fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                add(files, &path);
+            } else {
+                files.insert(path.clone(), fs::read(&path).unwrap());
+            }
+        }
+    }
+    let mut files = MemoryFiles::new();
+    add(&mut files, dir);
+    files
+}
+
 #[test]
 fn scene_round_trips_and_is_written_atomically() {
     let root = temp_root("roundtrip");
@@ -96,6 +115,7 @@ fn scene_round_trips_and_is_written_atomically() {
     let dir = root.join("scene_000");
     scene.write(&dir).unwrap();
     assert_eq!(Scene::read(&dir).unwrap(), scene);
+    assert_eq!(Scene::read_in(&in_memory(&dir), &dir).unwrap(), scene);
     // Only the finished scene is in the dataset folder, no temporary left behind.
     let names: Vec<String> = fs::read_dir(&root)
         .unwrap()
@@ -140,6 +160,10 @@ fn scene_round_trips_and_is_written_atomically() {
     single.write(&single_dir).unwrap();
     fs::remove_file(single_dir.join("actions.json")).unwrap();
     assert_eq!(Scene::read(&single_dir).unwrap(), single);
+    assert_eq!(
+        Scene::read_in(&in_memory(&single_dir), &single_dir).unwrap(),
+        single
+    );
     fs::remove_dir_all(&root).unwrap();
 }
 
@@ -154,6 +178,11 @@ fn assert_bad(root: &Path, case: &str, damage: impl FnOnce(&Path), file: &str, p
         Err(e) => e.to_string(),
     };
     println!("{case}: {message}");
+    let from_memory = match Scene::read_in(&in_memory(&dir), &dir) {
+        Ok(_) => panic!("{case}: a damaged scene was read from memory without error"),
+        Err(e) => e.to_string(),
+    };
+    assert_eq!(from_memory, message, "{case}: read from memory");
     let named = dir.join(file);
     assert!(
         message.starts_with(&named.display().to_string()),

@@ -2,7 +2,8 @@
 //! --print`.
 //!
 //! A settings file has up to three sections, each optional, each key optional:
-//! `[core]` (riseg-core's [`Config`]), `[segmenter]` ([`SegmenterParams`]) and `[flow]`
+//! `[core]` (riseg-core's [`Config`](riseg_core::Config)), `[segmenter]`
+//! ([`SegmenterParams`](crate::segment::SegmenterParams)) and `[flow]`
 //! ([`FlowParams`]). A key replaces its default; a missing key keeps it. Unknown
 //! sections and keys, values of the wrong type and values out of range are errors naming
 //! the file, the section and the key. The field names are those of the three structs,
@@ -12,37 +13,13 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, anyhow, bail};
-use riseg_core::Config;
 use serde::{Serialize, de::DeserializeOwned};
 
 use crate::flow::{DisFlow, FlowParams};
-use crate::segment::SegmenterParams;
+pub use crate::rig::tracker::Settings;
 
 /// The sections of a settings file, in the order `riseg config --print` writes them.
 const SECTIONS: [&str; 3] = ["core", "segmenter", "flow"];
-
-/// Everything a settings file sets: what `riseg demo`, `bench` and `run` run with.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Settings {
-    /// riseg-core's settings, `[core]`.
-    pub core: Config,
-    /// The built-in static segmenter's settings, `[segmenter]`.
-    pub segmenter: SegmenterParams,
-    /// The built-in optical flow's settings, `[flow]`.
-    pub flow: FlowParams,
-}
-
-impl Default for Settings {
-    /// [`Config::PAPER`], [`SegmenterParams::default`] and [`FlowParams::MEDIUM`]: what
-    /// every command runs without `--config`.
-    fn default() -> Self {
-        Self {
-            core: Config::PAPER,
-            segmenter: SegmenterParams::default(),
-            flow: FlowParams::MEDIUM,
-        }
-    }
-}
 
 /// A parsed and checked settings file.
 #[derive(Debug, Clone, Default)]

@@ -29,7 +29,7 @@ use crate::{
     cli::eval::PushReport,
     draw::{Clip, arrow, dot, label_colour, line, overlay_labels},
     eval::metrics::PushAverages,
-    flow::{DisFlow, viz::flow_to_rgb},
+    flow::viz::flow_to_rgb,
     io::{
         image::{RgbImage, write_rgb8},
         write_atomic,
@@ -37,7 +37,6 @@ use crate::{
     rig::episode::{Decision, EpisodeFrame, Stop, run_episode},
     rig::robot::PushCommand,
     rig::tracker::{Observation, Tracker},
-    segment::ClassicalSegmenter,
     sim::{Layout, SimConfig, SimRig, SimScene},
 };
 
@@ -109,11 +108,7 @@ pub fn run_demo(
     let sim = SimScene::with_config(seed, SimConfig::D415.with_layout(layout))
         .with_context(|| format!("building simulated {layout} scene {seed}"))?;
     let mut rig = SimRig::new(sim);
-    let mut tracker = Tracker::new(
-        ClassicalSegmenter::new(settings.segmenter)?,
-        DisFlow::new(settings.flow)?,
-        settings.core,
-    )?;
+    let mut tracker = Tracker::from_settings(settings)?;
     let mut frames = Vec::new();
     let summary = run_episode(
         &mut rig.camera,

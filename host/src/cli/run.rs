@@ -313,9 +313,7 @@ mod command {
 
     use crate::cli::config::ConfigArg;
     use crate::cli::run::{InputDirs, run_scene};
-    use crate::flow::DisFlow;
     use crate::rig::tracker::Tracker;
-    use crate::segment::ClassicalSegmenter;
     use anyhow::{Context as _, bail};
     use clap::Args;
     use indicatif::{ProgressBar, ProgressStyle};
@@ -392,11 +390,7 @@ Examples:
             (None, None) => bail!("give --scene DIR or --dataset DIR"),
         };
         let settings = args.config.load()?.settings();
-        let mut tracker = Tracker::new(
-            ClassicalSegmenter::new(settings.segmenter)?,
-            DisFlow::new(settings.flow)?,
-            settings.core,
-        )?;
+        let mut tracker = Tracker::from_settings(&settings)?;
         let bar = ProgressBar::new(scenes.len() as u64).with_style(
             ProgressStyle::with_template(
                 "{bar:30} {pos}/{len} scenes  {elapsed}  eta {eta}  {msg}",

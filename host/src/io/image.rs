@@ -18,11 +18,11 @@
 //! Flow is in pixels: the pixel `(x, y)` of the first image moves to `(x + dx, y + dy)`.
 
 use std::{
-    fs,
-    io::{self, BufReader},
+    io::{self, Cursor},
     path::{Path, PathBuf},
 };
 
+use super::files::{DiskFiles, Files};
 use super::write_atomic;
 
 use image::{
@@ -244,14 +244,14 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ImageIoError> {
     write_atomic(path, bytes).map_err(|e| ImageIoError::new(path, ImageProblem::Io(e)))
 }
 
-fn read_bytes(path: &Path) -> Result<Vec<u8>, ImageIoError> {
-    fs::read(path).map_err(|e| ImageIoError::io(path, e))
+fn read_bytes(files: &impl Files, path: &Path) -> Result<Vec<u8>, ImageIoError> {
+    files.read(path).map_err(|e| ImageIoError::io(path, e))
 }
 
-fn decode_png(path: &Path) -> Result<DynamicImage, ImageIoError> {
-    let file = fs::File::open(path).map_err(|e| ImageIoError::io(path, e))?;
+fn decode_png(files: &impl Files, path: &Path) -> Result<DynamicImage, ImageIoError> {
+    let bytes = read_bytes(files, path)?;
     let corrupt = |e| ImageIoError::new(path, ImageProblem::CorruptPng(e));
-    let decoder = PngDecoder::new(BufReader::new(file)).map_err(corrupt)?;
+    let decoder = PngDecoder::new(Cursor::new(bytes)).map_err(corrupt)?;
     DynamicImage::from_decoder(decoder).map_err(corrupt)
 }
 
@@ -301,7 +301,15 @@ pub fn read_sized<T>(
 /// # Errors
 /// Missing file, I/O error, corrupt PNG, or any other colour type or bit depth.
 pub fn read_rgb8(path: &Path) -> Result<RgbImage, ImageIoError> {
-    let decoded = decode_png(path)?;
+    read_rgb8_in(&DiskFiles, path)
+}
+
+/// [`read_rgb8`] from `files`.
+///
+/// # Errors
+/// As [`read_rgb8`].
+pub fn read_rgb8_in(files: &impl Files, path: &Path) -> Result<RgbImage, ImageIoError> {
+    let decoded = decode_png(files, path)?;
     let (width, height) = (decoded.width(), decoded.height());
     let data: Vec<[u8; 3]> = match &decoded {
         DynamicImage::ImageRgb8(img) => img
@@ -326,7 +334,7 @@ pub fn read_rgb8(path: &Path) -> Result<RgbImage, ImageIoError> {
 /// # Errors
 /// Missing file, I/O error, or corrupt PNG.
 pub fn read_png_as_rgb8(path: &Path) -> Result<RgbImage, ImageIoError> {
-    let rgb = decode_png(path)?.into_rgb8();
+    let rgb = decode_png(&DiskFiles, path)?.into_rgb8();
     let (width, height) = rgb.dimensions();
     let data = rgb
         .as_raw()
@@ -342,7 +350,15 @@ pub fn read_png_as_rgb8(path: &Path) -> Result<RgbImage, ImageIoError> {
 /// # Errors
 /// Missing file, I/O error, corrupt PNG, or not 16-bit greyscale.
 pub fn read_gray16(path: &Path) -> Result<Gray16Image, ImageIoError> {
-    let decoded = decode_png(path)?;
+    read_gray16_in(&DiskFiles, path)
+}
+
+/// [`read_gray16`] from `files`.
+///
+/// # Errors
+/// As [`read_gray16`].
+pub fn read_gray16_in(files: &impl Files, path: &Path) -> Result<Gray16Image, ImageIoError> {
+    let decoded = decode_png(files, path)?;
     match decoded {
         DynamicImage::ImageLuma16(img) => {
             let (width, height) = img.dimensions();
@@ -358,7 +374,7 @@ pub fn read_gray16(path: &Path) -> Result<Gray16Image, ImageIoError> {
 /// # Errors
 /// Missing file, I/O error, corrupt PNG, or not 8-bit greyscale.
 pub fn read_gray8(path: &Path) -> Result<Gray8Image, ImageIoError> {
-    let decoded = decode_png(path)?;
+    let decoded = decode_png(&DiskFiles, path)?;
     match decoded {
         DynamicImage::ImageLuma8(img) => {
             let (width, height) = img.dimensions();
@@ -374,7 +390,15 @@ pub fn read_gray8(path: &Path) -> Result<Gray8Image, ImageIoError> {
 /// # Errors
 /// Missing file, I/O error, corrupt PNG, or not greyscale.
 pub fn read_gray_widened(path: &Path) -> Result<Gray16Image, ImageIoError> {
-    let decoded = decode_png(path)?;
+    read_gray_widened_in(&DiskFiles, path)
+}
+
+/// [`read_gray_widened`] from `files`.
+///
+/// # Errors
+/// As [`read_gray_widened`].
+pub fn read_gray_widened_in(files: &impl Files, path: &Path) -> Result<Gray16Image, ImageIoError> {
+    let decoded = decode_png(files, path)?;
     match decoded {
         DynamicImage::ImageLuma16(img) => {
             let (width, height) = img.dimensions();
@@ -598,7 +622,15 @@ pub fn decode_flo(bytes: &[u8]) -> Result<FlowImage, FloFormatError> {
 /// Missing file, I/O error, or [`ImageProblem::CorruptFlo`] (wrong magic, non-positive or
 /// oversized dimensions, or a file length that does not match its header), naming `path`.
 pub fn read_flo(path: &Path) -> Result<FlowImage, ImageIoError> {
-    let bytes = read_bytes(path)?;
+    read_flo_in(&DiskFiles, path)
+}
+
+/// [`read_flo`] from `files`.
+///
+/// # Errors
+/// As [`read_flo`].
+pub fn read_flo_in(files: &impl Files, path: &Path) -> Result<FlowImage, ImageIoError> {
+    let bytes = read_bytes(files, path)?;
     decode_flo(&bytes).map_err(|e| ImageIoError::new(path, ImageProblem::CorruptFlo(e)))
 }
 
@@ -614,6 +646,8 @@ pub fn write_flo(path: &Path, flow: &FlowImage) -> Result<(), ImageIoError> {
 
 #[cfg(test)]
 mod tests {
+    use std::fs;
+
     use super::*;
 
     fn temp_dir(tag: &str) -> PathBuf {

@@ -1,7 +1,9 @@
 //! Formats: owned images and PNG ([`image`]), the Middlebury `.flo` flow format
 //! ([`image::read_flo`] and friends), atomic writes ([`write_atomic`]), and the scene
-//! folder ([`scene`]). Pure: nothing here names the CLI, the simulator or the loop.
+//! folder ([`scene`]), and where readers get files: the disk or memory ([`files`]). Pure:
+//! nothing here names the CLI, the simulator or the loop.
 
+pub mod files;
 pub mod image;
 pub mod scene;
 

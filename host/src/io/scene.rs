@@ -19,7 +19,8 @@
 //!   scene_001/ ...
 //! ```
 //!
-//! Contract of [`Scene::read`] (the folder may come from any tool, not only riseg):
+//! Contract of [`Scene::read`] (the folder may come from any tool, not only riseg), and of
+//! [`Scene::read_in`], the same reader over files held in memory ([`crate::io::files`]):
 //! - `scene_camera.json` and `rgb/` are required; there must be at least one frame.
 //!   Frames are named with six digits from `000000` without gaps; other files are ignored
 //!   (unknown JSON fields too).
@@ -51,9 +52,10 @@ use riseg_core::{Intrinsics, Pose};
 use serde::{Deserialize, Serialize};
 
 use super::write_atomic;
+use crate::io::files::{DiskFiles, Files};
 use crate::io::image::{
-    FlowImage, Gray16Image, Image, ImageIoError, RgbImage, read_flo, read_gray_widened,
-    read_gray16, read_rgb8, write_flo, write_gray16, write_rgb8,
+    FlowImage, Gray16Image, Image, ImageIoError, RgbImage, read_flo_in, read_gray_widened_in,
+    read_gray16_in, read_rgb8_in, write_flo, write_gray16, write_rgb8,
 };
 
 /// Intrinsics file name.
@@ -121,7 +123,15 @@ impl SceneCamera {
     /// [`SceneError::Invalid`] for an empty size, non-finite values, a non-positive focal
     /// length or depth unit.
     pub fn read(path: &Path) -> Result<Self, SceneError> {
-        let camera: Self = read_json(path)?;
+        Self::read_in(&DiskFiles, path)
+    }
+
+    /// [`SceneCamera::read`] from `files`.
+    ///
+    /// # Errors
+    /// As [`SceneCamera::read`].
+    pub fn read_in(files: &impl Files, path: &Path) -> Result<Self, SceneError> {
+        let camera: Self = read_json(files, path)?;
         match camera.problem() {
             Some(reason) => Err(invalid(path, reason)),
             None => Ok(camera),
@@ -301,8 +311,12 @@ fn poses_problem(poses: &[Vec<ObjectPose>], frames: usize) -> Option<String> {
 }
 
 /// Reads and checks `poses.json` of a `frames`-frame scene.
-fn read_poses(path: &Path, frames: usize) -> Result<Vec<Vec<ObjectPose>>, SceneError> {
-    let file: PosesFile = read_json(path)?;
+fn read_poses(
+    files: &impl Files,
+    path: &Path,
+    frames: usize,
+) -> Result<Vec<Vec<ObjectPose>>, SceneError> {
+    let file: PosesFile = read_json(files, path)?;
     let poses = file
         .frames
         .iter()
@@ -414,16 +428,18 @@ pub fn frame_paths(dir: &Path, t: usize) -> (PathBuf, PathBuf) {
 }
 
 /// Frame numbers of the `NNNNNN.ext` files in `dir`, sorted; `None` if `dir` does not exist.
-fn frame_numbers(dir: &Path, ext: &str) -> Result<Option<Vec<usize>>, SceneError> {
-    let entries = match fs::read_dir(dir) {
-        Ok(entries) => entries,
+fn frame_numbers(
+    files: &impl Files,
+    dir: &Path,
+    ext: &str,
+) -> Result<Option<Vec<usize>>, SceneError> {
+    let names = match files.list(dir) {
+        Ok(names) => names,
         Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(io_error(dir, e)),
     };
     let mut numbers = Vec::new();
-    for entry in entries {
-        let entry = entry.map_err(|e| io_error(dir, e))?;
-        let name = entry.file_name();
+    for name in names {
         let Some(name) = name.to_str() else { continue };
         let Some(stem) = name
             .strip_suffix(ext)
@@ -471,8 +487,11 @@ fn check_frames(
     Ok(count)
 }
 
-fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SceneError> {
-    let text = fs::read(path).map_err(|e| io_error(path, e))?;
+fn read_json<T: serde::de::DeserializeOwned>(
+    files: &impl Files,
+    path: &Path,
+) -> Result<T, SceneError> {
+    let text = files.read(path).map_err(|e| io_error(path, e))?;
     serde_json::from_slice(&text).map_err(|source| SceneError::Json {
         path: path.to_path_buf(),
         source,
@@ -538,29 +557,39 @@ impl Scene {
     /// # Errors
     /// A [`SceneError`] naming the first file or folder that breaks a rule.
     pub fn read(dir: &Path) -> Result<Self, SceneError> {
-        if !dir.is_dir() {
+        Self::read_in(&DiskFiles, dir)
+    }
+
+    /// [`Scene::read`] of the folder `dir` in `files`: the same rules and messages, for a
+    /// scene held in memory ([`crate::io::files::MemoryFiles`]).
+    ///
+    /// # Errors
+    /// As [`Scene::read`].
+    pub fn read_in(files: &impl Files, dir: &Path) -> Result<Self, SceneError> {
+        if !files.is_dir(dir) {
             return Err(SceneError::Missing {
                 path: dir.to_path_buf(),
             });
         }
-        let camera = SceneCamera::read(&dir.join(CAMERA_FILE))?;
+        let camera = SceneCamera::read_in(files, &dir.join(CAMERA_FILE))?;
 
         let rgb_dir = dir.join(RGB_DIR);
-        let rgb_numbers = frame_numbers(&rgb_dir, "png")?.ok_or_else(|| SceneError::Missing {
-            path: rgb_dir.clone(),
-        })?;
+        let rgb_numbers =
+            frame_numbers(files, &rgb_dir, "png")?.ok_or_else(|| SceneError::Missing {
+                path: rgb_dir.clone(),
+            })?;
         let n = check_frames(&rgb_dir, "png", &rgb_numbers, None)?;
         let per_frame = Some((n, "one per frame in rgb/"));
 
         let depth_dir = dir.join(DEPTH_DIR);
         let depth_numbers =
-            frame_numbers(&depth_dir, "png")?.ok_or_else(|| SceneError::Missing {
+            frame_numbers(files, &depth_dir, "png")?.ok_or_else(|| SceneError::Missing {
                 path: depth_dir.clone(),
             })?;
         check_frames(&depth_dir, "png", &depth_numbers, per_frame)?;
 
         let label_dir = dir.join(LABEL_DIR);
-        let has_labels = match frame_numbers(&label_dir, "png")? {
+        let has_labels = match frame_numbers(files, &label_dir, "png")? {
             Some(numbers) => {
                 check_frames(&label_dir, "png", &numbers, per_frame)?;
                 true
@@ -568,7 +597,7 @@ impl Scene {
             None => false,
         };
         let flow_dir = dir.join(FLOW_DIR);
-        let has_flow = match frame_numbers(&flow_dir, "flo")? {
+        let has_flow = match frame_numbers(files, &flow_dir, "flo")? {
             Some(numbers) => {
                 check_frames(&flow_dir, "flo", &numbers, Some((n - 1, "one per push")))?;
                 true
@@ -577,31 +606,43 @@ impl Scene {
         };
 
         let actions_path = dir.join(ACTIONS_FILE);
-        let actions: Vec<PushAction> = if n == 1 && !actions_path.exists() {
+        let actions: Vec<PushAction> = if n == 1 && !files.is_file(&actions_path) {
             Vec::new()
         } else {
-            read_json(&actions_path)?
+            read_json(files, &actions_path)?
         };
         check_actions(&actions_path, &actions, n - 1)?;
 
         let poses_path = dir.join(POSES_FILE);
-        let poses = if poses_path.exists() {
-            Some(read_poses(&poses_path, n)?)
+        let poses = if files.is_file(&poses_path) {
+            Some(read_poses(files, &poses_path, n)?)
         } else {
             None
         };
 
         let frame = |sub: &Path, t: usize, ext: &str| sub.join(frame_file_name(t, ext));
         let rgb = (0..n)
-            .map(|t| read_sized(&frame(&rgb_dir, t, "png"), &camera, read_rgb8))
+            .map(|t| {
+                read_sized(&frame(&rgb_dir, t, "png"), &camera, |p| {
+                    read_rgb8_in(files, p)
+                })
+            })
             .collect::<Result<Vec<_>, _>>()?;
         let depth = (0..n)
-            .map(|t| read_sized(&frame(&depth_dir, t, "png"), &camera, read_gray16))
+            .map(|t| {
+                read_sized(&frame(&depth_dir, t, "png"), &camera, |p| {
+                    read_gray16_in(files, p)
+                })
+            })
             .collect::<Result<Vec<_>, _>>()?;
         let labels = if has_labels {
             Some(
                 (0..n)
-                    .map(|t| read_sized(&frame(&label_dir, t, "png"), &camera, read_gray_widened))
+                    .map(|t| {
+                        read_sized(&frame(&label_dir, t, "png"), &camera, |p| {
+                            read_gray_widened_in(files, p)
+                        })
+                    })
                     .collect::<Result<Vec<_>, _>>()?,
             )
         } else {
@@ -610,7 +651,11 @@ impl Scene {
         let flow = if has_flow {
             Some(
                 (0..n - 1)
-                    .map(|t| read_sized(&frame(&flow_dir, t, "flo"), &camera, read_flo))
+                    .map(|t| {
+                        read_sized(&frame(&flow_dir, t, "flo"), &camera, |p| {
+                            read_flo_in(files, p)
+                        })
+                    })
                     .collect::<Result<Vec<_>, _>>()?,
             )
         } else {

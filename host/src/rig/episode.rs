@@ -124,18 +124,8 @@ where
         let captured = camera.capture()?;
         let observation = tracker.observe(captured.clone())?;
         let frame = &captured;
-        let (w, h) = frame.size();
-        let scratch = action_buf.get_or_insert_with(|| ActionBuf::new(&cfg, w, h));
-        let action = find_action(
-            &ImageView::packed(w, h, &observation.static_seg.heatmap)
-                .map_err(EpisodeError::Action)?,
-            &ImageView::packed(w, h, frame.depth_m.as_slice()).map_err(EpisodeError::Action)?,
-            &ImageView::packed(w, h, &observation.mask).map_err(EpisodeError::Action)?,
-            &frame.intrinsics,
-            &cfg,
-            scratch.view(),
-        )
-        .map_err(EpisodeError::Action)?;
+        let action = find_action_on(frame, &observation, &cfg, &mut action_buf)
+            .map_err(EpisodeError::Action)?;
         let decision = decide(&mut state, &cfg, &action, robot, setup);
         on_frame(&EpisodeFrame {
             t,
@@ -167,6 +157,31 @@ where
             }
         }
     }
+}
+
+/// FindAction on `frame` as the loop runs it: on the static heatmap of `observation`, the
+/// frame's depth and the accumulated mask. `buf` is sized on the first call and reused:
+/// every frame given with one `buf` must have one size.
+///
+/// # Errors
+/// riseg-core's error when FindAction refuses its input (a frame of another size than
+/// `buf`'s first gives [`riseg_core::Error::BufferTooSmall`] or works in the larger buffers).
+pub fn find_action_on(
+    frame: &CameraFrame,
+    observation: &Observation,
+    cfg: &Config,
+    buf: &mut Option<ActionBuf>,
+) -> Result<ActionReport, riseg_core::Error> {
+    let (w, h) = frame.size();
+    let scratch = buf.get_or_insert_with(|| ActionBuf::new(cfg, w, h));
+    find_action(
+        &ImageView::packed(w, h, &observation.static_seg.heatmap)?,
+        &ImageView::packed(w, h, frame.depth_m.as_slice())?,
+        &ImageView::packed(w, h, &observation.mask)?,
+        &frame.intrinsics,
+        cfg,
+        scratch.view(),
+    )
 }
 
 fn decide(

@@ -21,6 +21,12 @@
 //!
 //! The core's buffers are sized on the first frame and reused (no allocation per step in
 //! the core; the host allocates the flow field and the returned masks).
+//!
+//! [`Tracker::from_settings`] is the tracker every command runs ([`Settings`]: the built-in
+//! segmenter and flow). A caller that times or shows the stages one by one (the browser
+//! demo) runs [`Tracker::segmenter_mut`] and [`Tracker::flow_estimator`] itself, exactly as
+//! `observe` would call them, and hands their outputs to [`Tracker::observe_given`]: the
+//! masks are the same as `observe`'s, bit for bit.
 
 use riseg_core::{
     Config, ImageView,
@@ -30,11 +36,35 @@ use riseg_core::{
 };
 
 use crate::{
-    flow::{Flow, FlowError, FlowEstimator, RgbView},
+    flow::{DisFlow, Flow, FlowError, FlowEstimator, FlowParams, RgbView},
     rig::camera::CameraFrame,
     rig::workspace::WorkspaceBuf,
-    segment::{SegmentError, Segmentation, StaticSegmenter},
+    segment::{ClassicalSegmenter, SegmentError, Segmentation, SegmenterParams, StaticSegmenter},
 };
+
+/// The settings of everything that runs the algorithm (`riseg demo`, `bench`, `run`, the
+/// browser demo), and what a settings file sets (`riseg --config`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settings {
+    /// riseg-core's settings, `[core]`.
+    pub core: Config,
+    /// The built-in static segmenter's settings, `[segmenter]`.
+    pub segmenter: SegmenterParams,
+    /// The built-in optical flow's settings, `[flow]`.
+    pub flow: FlowParams,
+}
+
+impl Default for Settings {
+    /// [`Config::PAPER`], [`SegmenterParams::default`] and [`FlowParams::MEDIUM`]: what
+    /// every command runs without `--config`.
+    fn default() -> Self {
+        Self {
+            core: Config::PAPER,
+            segmenter: SegmenterParams::default(),
+            flow: FlowParams::MEDIUM,
+        }
+    }
+}
 
 /// Why a tracker step failed.
 #[derive(Debug, thiserror::Error)]
@@ -173,6 +203,20 @@ pub struct Tracker<S, F> {
     previous: Option<Previous>,
 }
 
+impl Tracker<ClassicalSegmenter, DisFlow> {
+    /// The built-in segmenter and flow with `settings`: what `riseg run` runs.
+    ///
+    /// # Errors
+    /// [`TrackError`] naming the stage whose settings are invalid.
+    pub fn from_settings(settings: &Settings) -> Result<Self, TrackError> {
+        Self::new(
+            ClassicalSegmenter::new(settings.segmenter)?,
+            DisFlow::new(settings.flow)?,
+            settings.core,
+        )
+    }
+}
+
 impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
     /// A tracker with these stages and riseg-core settings.
     ///
@@ -193,6 +237,17 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
     #[must_use]
     pub const fn config(&self) -> &Config {
         &self.cfg
+    }
+
+    /// The static segmenter [`Tracker::observe`] runs (module docs).
+    pub fn segmenter_mut(&mut self) -> &mut S {
+        &mut self.segmenter
+    }
+
+    /// The flow estimator [`Tracker::observe`] runs (module docs).
+    #[must_use]
+    pub const fn flow_estimator(&self) -> &F {
+        &self.flow
     }
 
     /// Forgets the previous frame: the next frame starts a new scene.

@@ -24,8 +24,8 @@
 //! - Every error is a JS exception (`Error`) with the message riseg prints (the file and
 //!   the problem for a bad scene); a Rust panic is printed with `console.error` before the
 //!   module traps, never a silent empty result.
-//! - Everything riseg's types are touched in one module, `adapter`; this one maps them to
-//!   JS.
+//! - riseg's (host) types are named in one module, `adapter`; this one only maps its plain
+//!   slices, arrays and messages to JS.
 
 mod adapter;
 

@@ -11,7 +11,8 @@ import { dirname, join } from 'node:path';
 import { after, before, test } from 'node:test';
 import { fileURLToPath } from 'node:url';
 import {
-  asDataset, launchChromium, nativeDigests, nativeEval, playToEnd, riseg, serve, tempDir,
+  asDataset, dropFolder, launchChromium, nativeDigests, nativeEval, playToEnd, riseg, serve,
+  tempDir,
 } from './helpers.js';
 
 const WEB = dirname(dirname(fileURLToPath(import.meta.url)));
@@ -60,10 +61,6 @@ function assertMatchesNative(sceneDir, frames) {
   assertMetricsEqual(frames, nativeEval(sceneDir, pred));
 }
 
-async function pickFolder(dir) {
-  await page.setInputFiles('#folder', dir);
-}
-
 test('a bundled scene runs to the end in the browser, bit-identical to riseg run, no mask fetched', async () => {
   for (const scene of INDEX.scenes) {
     await page.selectOption('#scene', scene.name);
@@ -98,7 +95,7 @@ test('a scene generated now, picked as a folder, gives the masks and metrics of 
   riseg('gen', '--layout', 'packed', '--scenes', '1', '--pushes', '2', '--seed', '7', '--out', out);
   const dir = join(out, 'scene_000');
   rmSync(join(dir, 'flow'), { recursive: true }); // not read by the page; keeps the upload small
-  await pickFolder(dir);
+  await page.setInputFiles('#folder', dir); // the folder picker
   await page.waitForFunction(() => window.riseg.scene === 'scene_000 (your folder)');
   const run = await playToEnd(page);
   assert.equal(run.status, 'done', run.error ?? '');
@@ -106,7 +103,7 @@ test('a scene generated now, picked as a folder, gives the masks and metrics of 
   assertMatchesNative(dir, run.frames);
 });
 
-test('a corrupt PNG or a missing scene_camera.json is an error naming the file; the page stays usable', async () => {
+test('a corrupt PNG or a missing scene_camera.json dropped on the page is an error naming the file; the page stays usable', async () => {
   const good = join(tempDir('src'), 'scene_bad');
   riseg('gen', '--layout', 'loose', '--scenes', '1', '--pushes', '1', '--seed', '3', '--out', dirname(good));
   cpSync(join(dirname(good), 'scene_000'), good, { recursive: true });
@@ -124,8 +121,10 @@ test('a corrupt PNG or a missing scene_camera.json is an error naming the file; 
     const bad = join(tempDir(name.replace(' ', '-')), 'scene_bad');
     cpSync(good, bad, { recursive: true });
     damage(bad);
-    await pickFolder(bad);
-    await page.waitForSelector('#error:not([hidden])');
+    const previous = await page.evaluate(() => window.riseg.error);
+    await dropFolder(page, bad);
+    await page.waitForFunction((prev) => window.riseg.error !== prev, previous);
+    assert.equal(await page.isVisible('#error'), true, `${name}: error shown`);
     const shown = await page.textContent('#error');
     assert.ok(shown.includes(message), `${name}: the error "${shown}" does not say "${message}"`);
     // Still usable: the scene that was open stays open and runs.
@@ -134,7 +133,8 @@ test('a corrupt PNG or a missing scene_camera.json is an error naming the file; 
     await page.click('#step');
     await page.waitForFunction(() => window.riseg.frames.length === 1 && window.riseg.status === 'ready');
   }
-  // Opening a good scene clears the error.
-  await pickFolder(good);
-  await page.waitForSelector('#error', { state: 'hidden' });
+  // Dropping a good scene opens it and clears the error.
+  await dropFolder(page, good);
+  await page.waitForFunction(() => window.riseg.scene === 'scene_bad (dropped)');
+  assert.equal(await page.isHidden('#error'), true);
 });

@@ -134,6 +134,17 @@ export function nativeEval(dir, pred) {
   return JSON.parse(readFileSync(json, 'utf8'));
 }
 
+// Drops the folder `dir` on the page as a user would (Chromium's drag-and-drop input, so the
+// page sees a directory entry it has to walk).
+export async function dropFolder(page, dir) {
+  const cdp = await page.context().newCDPSession(page);
+  const data = { items: [], files: [dir], dragOperationsMask: 1 };
+  for (const type of ['dragEnter', 'dragOver', 'drop']) {
+    await cdp.send('Input.dispatchDragEvent', { type, x: 600, y: 300, data });
+  }
+  await cdp.detach();
+}
+
 // Runs the open scene in the page to its end (the play button) and returns window.riseg.
 export async function playToEnd(page) {
   await page.click('#play');

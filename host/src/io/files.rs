@@ -12,6 +12,7 @@
 //! - [`Files::is_dir`] and [`Files::is_file`] say whether a folder or a file is there.
 
 use std::{
+    borrow::Cow,
     collections::BTreeMap,
     ffi::OsString,
     fs, io,
@@ -20,11 +21,11 @@ use std::{
 
 /// A source of files (module docs).
 pub trait Files {
-    /// The bytes of the file at `path`.
+    /// The bytes of the file at `path` (borrowed from a source that holds them).
     ///
     /// # Errors
     /// [`io::ErrorKind::NotFound`] if there is no such file; other errors as the source has.
-    fn read(&self, path: &Path) -> io::Result<Vec<u8>>;
+    fn read(&self, path: &Path) -> io::Result<Cow<'_, [u8]>>;
 
     /// The names of the entries of the folder `dir`.
     ///
@@ -44,8 +45,8 @@ pub trait Files {
 pub struct DiskFiles;
 
 impl Files for DiskFiles {
-    fn read(&self, path: &Path) -> io::Result<Vec<u8>> {
-        fs::read(path)
+    fn read(&self, path: &Path) -> io::Result<Cow<'_, [u8]>> {
+        fs::read(path).map(Cow::Owned)
     }
 
     fn list(&self, dir: &Path) -> io::Result<Vec<OsString>> {
@@ -92,10 +93,10 @@ impl MemoryFiles {
 }
 
 impl Files for MemoryFiles {
-    fn read(&self, path: &Path) -> io::Result<Vec<u8>> {
+    fn read(&self, path: &Path) -> io::Result<Cow<'_, [u8]>> {
         self.files
             .get(path)
-            .cloned()
+            .map(|bytes| Cow::Borrowed(bytes.as_slice()))
             .ok_or_else(|| io::ErrorKind::NotFound.into())
     }
 
@@ -130,7 +131,7 @@ mod tests {
         files.insert("s/rgb/000000.png", vec![1]);
         files.insert("s/rgb/000001.png", vec![2]);
         files.insert("s/scene_camera.json", vec![3]);
-        assert_eq!(files.read(Path::new("s/rgb/000001.png")).unwrap(), [2]);
+        assert_eq!(*files.read(Path::new("s/rgb/000001.png")).unwrap(), [2]);
         let missing = files.read(Path::new("s/rgb/000002.png")).unwrap_err();
         assert_eq!(missing.kind(), io::ErrorKind::NotFound);
         let mut top = files.list(Path::new("s")).unwrap();

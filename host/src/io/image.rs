@@ -18,6 +18,7 @@
 //! Flow is in pixels: the pixel `(x, y)` of the first image moves to `(x + dx, y + dy)`.
 
 use std::{
+    borrow::Cow,
     io::{self, Cursor},
     path::{Path, PathBuf},
 };
@@ -244,14 +245,14 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ImageIoError> {
     write_atomic(path, bytes).map_err(|e| ImageIoError::new(path, ImageProblem::Io(e)))
 }
 
-fn read_bytes(files: &impl Files, path: &Path) -> Result<Vec<u8>, ImageIoError> {
+fn read_bytes<'a>(files: &'a impl Files, path: &Path) -> Result<Cow<'a, [u8]>, ImageIoError> {
     files.read(path).map_err(|e| ImageIoError::io(path, e))
 }
 
 fn decode_png(files: &impl Files, path: &Path) -> Result<DynamicImage, ImageIoError> {
     let bytes = read_bytes(files, path)?;
     let corrupt = |e| ImageIoError::new(path, ImageProblem::CorruptPng(e));
-    let decoder = PngDecoder::new(Cursor::new(bytes)).map_err(corrupt)?;
+    let decoder = PngDecoder::new(Cursor::new(&*bytes)).map_err(corrupt)?;
     DynamicImage::from_decoder(decoder).map_err(corrupt)
 }
 

@@ -6,8 +6,13 @@
 # glue comes from wasm-bindgen-cli of exactly the version of the `wasm-bindgen` crate in
 # Cargo.lock, installed once into $CACHE/tools (outside the clone) and reused.
 #
+# The module uses WebAssembly SIMD (simd128: Chrome 91, Firefox 89, Safari 16.4 and later);
+# LLVM vectorises the flow's loops with it (about 2x faster flow) without changing a bit of
+# any result (the browser tests compare digests with native). Its build has a folder of its
+# own, so the plain wasm32 builds of .ci/run do not rebuild std back and forth.
+#
 # Environment: RISEG_CI_CACHE (default ~/.cache/riseg-ci) holds the tools and the build;
-# CROSS_TARGET_DIR overrides the wasm32 target folder.
+# CROSS_TARGET_DIR overrides the wasm32 target folder (this build uses its simd128/).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -29,10 +34,12 @@ if ! [ -x "$bindgen" ] || [ "$("$bindgen" --version)" != "wasm-bindgen $version"
   cargo install --quiet --root "$TOOLS" wasm-bindgen-cli --version "=$version" --force
 fi
 
-RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1 CARGO_TARGET_DIR="$CROSS_TARGET_DIR" \
+target="$CROSS_TARGET_DIR/simd128"
+RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1 CARGO_TARGET_DIR="$target" \
+  CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS="-C target-feature=+simd128" \
   CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_LINKER=/usr/lib/llvm-22/bin/wasm-ld /usr/bin/cargo build \
   --quiet --release -p riseg-wasm --target wasm32-unknown-unknown -Z build-std=std,panic_abort
 
 "$bindgen" --target web --no-typescript --out-dir web/pkg \
-  "$CROSS_TARGET_DIR/wasm32-unknown-unknown/release/riseg_wasm.wasm"
+  "$target/wasm32-unknown-unknown/release/riseg_wasm.wasm"
 echo "built web/pkg: $(du -b web/pkg/riseg_wasm_bg.wasm | cut -f1) bytes of wasm"

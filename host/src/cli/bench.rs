@@ -255,7 +255,7 @@ impl PushStart {
     fn of(f: &EpisodeFrame<'_>) -> Result<Self, String> {
         let frame = f
             .frame
-            .ceiling_frame(&f.observation.static_seg.labels)
+            .ceiling_frame(f.observation.static_seg.labels.as_slice())
             .ok_or_else(|| {
                 format!(
                     "frame {}: the camera gave no ground-truth labels or no object poses",
@@ -323,7 +323,7 @@ pub fn score_frame(f: &EpisodeFrame<'_>) -> Result<(ImageMetrics, ImageMetrics),
     let truth = f.frame.truth.as_ref().map_or(empty, |t| t.as_slice());
     let obs = f.observation;
     Ok((
-        image_metrics(truth, &obs.static_seg.labels, w, h)?,
+        image_metrics(truth, obs.static_seg.labels.as_slice(), w, h)?,
         image_metrics(truth, &obs.mask, w, h)?,
     ))
 }
@@ -340,7 +340,7 @@ fn score_ceiling(
 ) -> Result<ImageMetrics, String> {
     let frame = f
         .frame
-        .ceiling_frame(&f.observation.static_seg.labels)
+        .ceiling_frame(f.observation.static_seg.labels.as_slice())
         .ok_or("the camera gave no ground-truth labels or no object poses")?;
     let mask = ceiling.next_frame(&frame).map_err(|e| e.to_string())?;
     image_metrics(frame.truth, &mask, frame.width, frame.height).map_err(|e| e.to_string())

@@ -174,7 +174,7 @@ const GREY: [u8; 3] = [120, 120, 120];
 pub fn panels(f: &EpisodeFrame<'_>) -> RgbImage {
     let (w, h) = f.frame.size();
     let obs: &Observation = f.observation;
-    let static_panel = overlay_labels(&f.frame.rgb, &obs.static_seg.labels);
+    let static_panel = overlay_labels(&f.frame.rgb, obs.static_seg.labels.as_slice());
     let mut riseg_panel = overlay_labels(&f.frame.rgb, &obs.mask);
     let clip = Clip::all(&riseg_panel);
     for c in f.action.certain() {
@@ -198,18 +198,11 @@ pub fn panels(f: &EpisodeFrame<'_>) -> RgbImage {
             line(&mut frames_panel, clip, px[0], px[2], colour, 1);
             dot(&mut frames_panel, clip, px[0], colour, 1);
         }
-        let rgb = flow_to_rgb(&step.flow, None);
-        flow_panel = RgbImage::from_fn(w as u32, h as u32, |x, y| {
-            let i = 3 * (y as usize * w + x as usize);
-            match rgb.get(i..i + 3) {
-                Some(&[r, g, b]) => [r, g, b],
-                _ => [0; 3],
-            }
-        });
+        flow_panel = flow_to_rgb(&step.flow, None);
     }
-    RgbImage::from_fn(2 * w as u32, 2 * h as u32, |x, y| {
-        let (col, row) = (x as usize / w, y as usize / h);
-        let (lx, ly) = (x % w as u32, y % h as u32);
+    RgbImage::from_fn(2 * w, 2 * h, |x, y| {
+        let (col, row) = (x / w, y / h);
+        let (lx, ly) = (x % w, y % h);
         let tile = match (col, row) {
             (0, 0) => &static_panel,
             (1, 0) => &riseg_panel,

@@ -26,7 +26,7 @@
 //! - Every file must have the size `S/scene_camera.json` gives, and every frame its files
 //!   (a heatmap excepted); other files are ignored.
 //! - Flow: a vector with a component of magnitude `1e9` or more (Middlebury's "unknown") or
-//!   a non-finite one becomes `[NaN, NaN]` ([`Flow::from_middlebury`]). riseg-core uses no
+//!   a non-finite one becomes `[NaN, NaN]` ([`FlowImage::with_unknown_as_nan`](crate::io::image::FlowImage::with_unknown_as_nan)). riseg-core uses no
 //!   information from it: CreateFrames drops a frame whose tracked point has non-finite
 //!   flow (`riseg_core::frames`), and CorrectMask's carry step moves a label only to a
 //!   target inside the image, which a NaN target is not (`riseg_core::mask`). The core
@@ -56,7 +56,7 @@ use std::{
 };
 
 use crate::{
-    flow::{Flow, FlowEstimator},
+    flow::FlowEstimator,
     io::image::{
         Gray16Image, ImageIoError, ImageProblem, ImageSizeError, read_flo, read_gray_widened,
         read_gray8, read_sized, write_gray16,
@@ -172,7 +172,7 @@ impl InputDirs {
                         let image =
                             read_sized(&path, scene.camera.width, scene.camera.height, read_flo)
                                 .map_err(|e| failed(t, InputKind::Flow, e))?;
-                        Some(Flow::from_middlebury(image))
+                        Some(image.with_unknown_as_nan())
                     }
                     _ => None,
                 };
@@ -196,24 +196,17 @@ fn read_static(
 ) -> Result<Segmentation, (InputKind, ImageIoError)> {
     let path = frame_file(dir, LABEL_DIR, t, "png");
     let mut labels = read_sized(&path, camera.width, camera.height, read_gray_widened)
-        .map_err(|e| (InputKind::Labels, e))?
-        .into_vec();
-    renumber(&mut labels);
+        .map_err(|e| (InputKind::Labels, e))?;
+    renumber(labels.as_mut_slice());
     let path = frame_file(dir, HEAT_DIR, t, "png");
     let heatmap = match read_sized(&path, camera.width, camera.height, read_gray8) {
-        Ok(heat) => heat.into_vec(),
-        Err(e) if matches!(e.problem, ImageProblem::Missing) => labels
-            .iter()
-            .map(|&l| if l == 0 { 0 } else { HEAT_CERTAIN })
-            .collect(),
+        Ok(heat) => heat,
+        Err(e) if matches!(e.problem, ImageProblem::Missing) => {
+            labels.map(|&l| if l == 0 { 0 } else { HEAT_CERTAIN })
+        }
         Err(e) => return Err((InputKind::Heatmap, e)),
     };
-    Ok(Segmentation {
-        width: camera.width as usize,
-        height: camera.height as usize,
-        labels,
-        heatmap,
-    })
+    Ok(Segmentation { labels, heatmap })
 }
 
 /// Renumbers the non-zero ids of `labels` to `1..=n` in increasing order; `0` stays `0`.

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use crate::cli::config::ConfigArg;
-use crate::io::image::{Image, ImageIoError};
+use crate::io::image::ImageIoError;
 use crate::io::scene::{self, SceneCamera};
 use crate::segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams, viz};
 use anyhow::{Context as _, bail};
@@ -94,7 +94,7 @@ pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
         .iter()
         .map(|&d| camera.depth_m(d))
         .collect();
-    let (w, h) = (width as usize, height as usize);
+    let (w, h) = (width, height);
     let frame = RgbdFrame::new(w, h, rgb.as_slice(), &depth_m)?;
     let mut segmenter = ClassicalSegmenter::new(SegmenterParams {
         seed: args.seed.unwrap_or(params.seed),
@@ -105,16 +105,12 @@ pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
         .with_context(|| format!("segmenting {}", rgb_path.display()))?;
     let seg = &out.segmentation;
 
-    crate::io::image::write_gray16(
-        &args.output,
-        &Image::from_vec(width, height, seg.labels.clone())?,
-    )?;
+    crate::io::image::write_gray16(&args.output, &seg.labels)?;
     if let Some(path) = &args.heatmap {
-        crate::io::image::write_gray8(path, &Image::from_vec(width, height, seg.heatmap.clone())?)?;
+        crate::io::image::write_gray8(path, &seg.heatmap)?;
     }
     if let Some(path) = &args.viz {
-        let picture = viz::side_by_side(rgb.as_slice(), seg);
-        crate::io::image::write_rgb8(path, &Image::from_vec(3 * width, height, picture)?)?;
+        crate::io::image::write_rgb8(path, &viz::side_by_side(&rgb, seg))?;
     }
     let n = out.plane.normal;
     println!(

@@ -1,9 +1,12 @@
-//! Owned images and their files: 8-bit RGB PNG, 16-bit grey PNG (depth, labels), 8-bit
-//! grey PNG (heatmaps) and Middlebury `.flo` optical flow.
+//! The host's one owned image type and its files: 8-bit RGB PNG, 16-bit grey PNG (depth,
+//! labels), 8-bit grey PNG (heatmaps) and Middlebury `.flo` optical flow.
 //!
 //! Contract:
 //! - [`Image<T>`] is row-major with no padding: pixel `(x, y)` is `data[y·width + x]`, and
-//!   `data.len() == width·height` always holds (checked on construction).
+//!   `data.len() == width·height` always holds (checked on construction). Sizes are
+//!   `usize`. Every image in the host is one ([`RgbImage`], [`DepthImage`], [`FlowImage`],
+//!   labels and heatmaps); [`Image::view`] lends it to riseg-core, to the flow estimators
+//!   and to the segmenter as an [`ImageView`] without copying.
 //! - Every reader error is an [`ImageIoError`] whose message starts with the file's path and
 //!   then says the problem: missing file, unreadable file, corrupt PNG, wrong colour type or
 //!   bit depth, wrong size (see [`ImageIoError::expect_size`]), or a malformed `.flo`.
@@ -23,6 +26,8 @@ use std::{
     path::{Path, PathBuf},
 };
 
+use riseg_core::ImageView;
+
 use super::write_atomic;
 
 use image::{
@@ -31,10 +36,10 @@ use image::{
 };
 
 /// An owned, row-major image without padding.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Image<T> {
-    width: u32,
-    height: u32,
+    width: usize,
+    height: usize,
     data: Vec<T>,
 }
 
@@ -51,12 +56,12 @@ pub type Gray8Image = Image<u8>;
 
 /// `data.len()` does not match `width·height` in [`Image::from_vec`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-#[error("image data has {len} pixels, {width}x{height} needs {}", (*.width as u64) * (*.height as u64))]
+#[error("image data has {len} pixels, which is not {width}x{height}")]
 pub struct ImageSizeError {
     /// Requested width, pixels.
-    pub width: u32,
+    pub width: usize,
     /// Requested height, pixels.
-    pub height: u32,
+    pub height: usize,
     /// Pixels supplied.
     pub len: usize,
 }
@@ -66,8 +71,8 @@ impl<T> Image<T> {
     ///
     /// # Errors
     /// [`ImageSizeError`] if `data.len() != width·height`.
-    pub fn from_vec(width: u32, height: u32, data: Vec<T>) -> Result<Self, ImageSizeError> {
-        let needed = (width as usize).checked_mul(height as usize);
+    pub fn from_vec(width: usize, height: usize, data: Vec<T>) -> Result<Self, ImageSizeError> {
+        let needed = width.checked_mul(height);
         if needed == Some(data.len()) {
             Ok(Self {
                 width,
@@ -84,8 +89,14 @@ impl<T> Image<T> {
     }
 
     /// An image whose pixel `(x, y)` is `f(x, y)`, built row by row.
-    pub fn from_fn(width: u32, height: u32, mut f: impl FnMut(u32, u32) -> T) -> Self {
-        let mut data = Vec::with_capacity(width as usize * height as usize);
+    ///
+    /// # Panics
+    /// If `width·height` overflows `usize` (no such image fits in memory).
+    pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> T) -> Self {
+        let pixels = width
+            .checked_mul(height)
+            .expect("image size overflows usize");
+        let mut data = Vec::with_capacity(pixels);
         for y in 0..height {
             for x in 0..width {
                 data.push(f(x, y));
@@ -100,24 +111,37 @@ impl<T> Image<T> {
 
     /// Width, pixels.
     #[must_use]
-    pub fn width(&self) -> u32 {
+    pub const fn width(&self) -> usize {
         self.width
     }
 
     /// Height, pixels.
     #[must_use]
-    pub fn height(&self) -> u32 {
+    pub const fn height(&self) -> usize {
         self.height
+    }
+
+    /// `(width, height)`, pixels.
+    #[must_use]
+    pub const fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
     }
 
     /// The pixel at `(x, y)`, or `None` outside the image.
     #[must_use]
-    pub fn get(&self, x: u32, y: u32) -> Option<&T> {
+    pub fn get(&self, x: usize, y: usize) -> Option<&T> {
         if x < self.width && y < self.height {
-            self.data.get(y as usize * self.width as usize + x as usize)
+            self.data.get(y * self.width + x)
         } else {
             None
         }
+    }
+
+    /// The image lent as a riseg-core view (packed: the stride is the width).
+    #[must_use]
+    pub fn view(&self) -> ImageView<'_, T> {
+        ImageView::packed(self.width, self.height, &self.data)
+            .expect("an Image holds exactly width·height pixels")
     }
 
     /// All pixels, row-major.
@@ -183,13 +207,21 @@ pub enum ImageProblem {
     #[error("expected {expected_width}x{expected_height} pixels, found {width}x{height}")]
     WrongSize {
         /// Width the caller needs.
-        expected_width: u32,
+        expected_width: usize,
         /// Height the caller needs.
-        expected_height: u32,
+        expected_height: usize,
         /// Width in the file.
-        width: u32,
+        width: usize,
         /// Height in the file.
-        height: u32,
+        height: usize,
+    },
+    /// An image to write has a side beyond what a PNG can hold (`u32`).
+    #[error("a {width}x{height} image is too large for a PNG")]
+    TooLargeForPng {
+        /// Width, pixels.
+        width: usize,
+        /// Height, pixels.
+        height: usize,
     },
     /// The `.flo` file is malformed.
     #[error("not a valid Middlebury .flo file: {0}")]
@@ -220,8 +252,8 @@ impl ImageIoError {
     pub fn expect_size<T>(
         path: &Path,
         image: &Image<T>,
-        width: u32,
-        height: u32,
+        width: usize,
+        height: usize,
     ) -> Result<(), Self> {
         if image.width == width && image.height == height {
             Ok(())
@@ -286,8 +318,8 @@ fn wrong_format(path: &Path, expected: &'static str, found: &DynamicImage) -> Im
 /// `read`'s errors, or [`ImageProblem::WrongSize`] naming `path`.
 pub fn read_sized<T>(
     path: &Path,
-    width: u32,
-    height: u32,
+    width: usize,
+    height: usize,
     read: impl FnOnce(&Path) -> Result<Image<T>, ImageIoError>,
 ) -> Result<Image<T>, ImageIoError> {
     let image = read(path)?;
@@ -395,7 +427,7 @@ fn from_decoded<T>(
     height: u32,
     data: Vec<T>,
 ) -> Result<Image<T>, ImageIoError> {
-    Image::from_vec(width, height, data).map_err(|e| {
+    Image::from_vec(width as usize, height as usize, data).map_err(|e| {
         ImageIoError::new(
             path,
             ImageProblem::CorruptPng(image::ImageError::IoError(io::Error::other(e))),
@@ -406,13 +438,15 @@ fn from_decoded<T>(
 fn encode_png(
     path: &Path,
     bytes: &[u8],
-    width: u32,
-    height: u32,
+    (width, height): (usize, usize),
     color: ExtendedColorType,
 ) -> Result<Vec<u8>, ImageIoError> {
+    let too_large = || ImageIoError::new(path, ImageProblem::TooLargeForPng { width, height });
+    let png_width = u32::try_from(width).map_err(|_| too_large())?;
+    let png_height = u32::try_from(height).map_err(|_| too_large())?;
     let mut out = Vec::new();
     PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Adaptive)
-        .write_image(bytes, width, height, color)
+        .write_image(bytes, png_width, png_height, color)
         .map_err(|e| ImageIoError::new(path, ImageProblem::CorruptPng(e)))?;
     Ok(out)
 }
@@ -423,13 +457,7 @@ fn encode_png(
 /// I/O errors, or an image the PNG encoder refuses (e.g. zero width), naming `path`.
 pub fn write_rgb8(path: &Path, image: &RgbImage) -> Result<(), ImageIoError> {
     let bytes: Vec<u8> = image.data.iter().flatten().copied().collect();
-    let png = encode_png(
-        path,
-        &bytes,
-        image.width,
-        image.height,
-        ExtendedColorType::Rgb8,
-    )?;
+    let png = encode_png(path, &bytes, image.size(), ExtendedColorType::Rgb8)?;
     write_file(path, &png)
 }
 
@@ -440,13 +468,7 @@ pub fn write_rgb8(path: &Path, image: &RgbImage) -> Result<(), ImageIoError> {
 pub fn write_gray16(path: &Path, image: &Gray16Image) -> Result<(), ImageIoError> {
     // The encoder takes native-endian samples and writes PNG's big-endian ones.
     let bytes: Vec<u8> = image.data.iter().flat_map(|v| v.to_ne_bytes()).collect();
-    let png = encode_png(
-        path,
-        &bytes,
-        image.width,
-        image.height,
-        ExtendedColorType::L16,
-    )?;
+    let png = encode_png(path, &bytes, image.size(), ExtendedColorType::L16)?;
     write_file(path, &png)
 }
 
@@ -455,20 +477,14 @@ pub fn write_gray16(path: &Path, image: &Gray16Image) -> Result<(), ImageIoError
 /// # Errors
 /// As [`write_rgb8`].
 pub fn write_gray8(path: &Path, image: &Gray8Image) -> Result<(), ImageIoError> {
-    let png = encode_png(
-        path,
-        &image.data,
-        image.width,
-        image.height,
-        ExtendedColorType::L8,
-    )?;
+    let png = encode_png(path, &image.data, image.size(), ExtendedColorType::L8)?;
     write_file(path, &png)
 }
 
 /// The `.flo` magic number (the bytes `PIEH` read as a little-endian `f32`).
 pub const FLO_MAGIC: f32 = 202_021.25;
 /// Largest width or height accepted from a `.flo` header (bounds memory on corrupt files).
-pub const FLO_MAX_SIDE: u32 = 1 << 15;
+pub const FLO_MAX_SIDE_PX: u32 = 1 << 15;
 const FLO_HEADER_BYTES: usize = 12;
 
 /// What is wrong with `.flo` bytes, or with a flow that cannot be written as a `.flo` file.
@@ -487,8 +503,8 @@ pub enum FloFormatError {
         /// The float found.
         found: f32,
     },
-    /// A side in the header is below 1 or above [`FLO_MAX_SIDE`].
-    #[error("header says {width}x{height} pixels; each side must be 1..={FLO_MAX_SIDE}")]
+    /// A side in the header is below 1 or above [`FLO_MAX_SIDE_PX`].
+    #[error("header says {width}x{height} pixels; each side must be 1..={FLO_MAX_SIDE_PX}")]
     BadSize {
         /// Width as stored.
         width: i32,
@@ -499,30 +515,30 @@ pub enum FloFormatError {
     #[error("{found} bytes, a {width}x{height} flow needs {expected}")]
     Length {
         /// Width from the header.
-        width: u32,
+        width: usize,
         /// Height from the header.
-        height: u32,
+        height: usize,
         /// Bytes the header requires, header included.
         expected: usize,
         /// Bytes present.
         found: usize,
     },
-    /// A flow to encode has a side of zero or above [`FLO_MAX_SIDE`].
-    #[error("cannot write a {width}x{height} flow; each side must be 1..={FLO_MAX_SIDE}")]
+    /// A flow to encode has a side of zero or above [`FLO_MAX_SIDE_PX`].
+    #[error("cannot write a {width}x{height} flow; each side must be 1..={FLO_MAX_SIDE_PX}")]
     Unwritable {
         /// Width of the flow.
-        width: u32,
+        width: usize,
         /// Height of the flow.
-        height: u32,
+        height: usize,
     },
 }
 
 /// The `.flo` bytes of `flow`.
 ///
 /// # Errors
-/// [`FloFormatError::Unwritable`] if a side is zero or above [`FLO_MAX_SIDE`].
+/// [`FloFormatError::Unwritable`] if a side is zero or above [`FLO_MAX_SIDE_PX`].
 pub fn encode_flo(flow: &FlowImage) -> Result<Vec<u8>, FloFormatError> {
-    let side_ok = |s: u32| s > 0 && s <= FLO_MAX_SIDE;
+    let side_ok = |s: usize| s > 0 && s <= FLO_MAX_SIDE_PX as usize;
     if !side_ok(flow.width) || !side_ok(flow.height) {
         return Err(FloFormatError::Unwritable {
             width: flow.width,
@@ -531,7 +547,7 @@ pub fn encode_flo(flow: &FlowImage) -> Result<Vec<u8>, FloFormatError> {
     }
     let mut bytes = Vec::with_capacity(FLO_HEADER_BYTES + flow.data.len() * 8);
     bytes.extend_from_slice(&FLO_MAGIC.to_le_bytes());
-    // Both sides are at most FLO_MAX_SIDE, so they fit in i32.
+    // Both sides are at most FLO_MAX_SIDE_PX, so they fit in i32.
     bytes.extend_from_slice(&(flow.width as i32).to_le_bytes());
     bytes.extend_from_slice(&(flow.height as i32).to_le_bytes());
     for [dx, dy] in &flow.data {
@@ -541,7 +557,7 @@ pub fn encode_flo(flow: &FlowImage) -> Result<Vec<u8>, FloFormatError> {
     Ok(bytes)
 }
 
-/// Parses `.flo` bytes. The header is checked against [`FLO_MAX_SIDE`] and the length
+/// Parses `.flo` bytes. The header is checked against [`FLO_MAX_SIDE_PX`] and the length
 /// before anything is allocated, so a corrupt header cannot exhaust memory.
 ///
 /// # Errors
@@ -556,15 +572,16 @@ pub fn decode_flo(bytes: &[u8]) -> Result<FlowImage, FloFormatError> {
         return Err(FloFormatError::BadMagic { found: magic });
     }
     let (w, h) = (i32::from_le_bytes(w), i32::from_le_bytes(h));
-    let side_ok = |s: i32| s > 0 && s as u32 <= FLO_MAX_SIDE;
+    let side_ok = |s: i32| s > 0 && s as u32 <= FLO_MAX_SIDE_PX;
     if !side_ok(w) || !side_ok(h) {
         return Err(FloFormatError::BadSize {
             width: w,
             height: h,
         });
     }
-    let (width, height) = (w as u32, h as u32);
-    let pixels = width as usize * height as usize;
+    // Both sides are in 1..=FLO_MAX_SIDE_PX, so they fit in usize and their product does too.
+    let (width, height) = (w as usize, h as usize);
+    let pixels = width * height;
     let expected = FLO_HEADER_BYTES + pixels * 8;
     if bytes.len() != expected {
         return Err(FloFormatError::Length {
@@ -605,7 +622,7 @@ pub fn read_flo(path: &Path) -> Result<FlowImage, ImageIoError> {
 /// Writes a Middlebury `.flo` file atomically.
 ///
 /// # Errors
-/// An image side above [`FLO_MAX_SIDE`] (or zero), or I/O errors, naming `path`.
+/// An image side above [`FLO_MAX_SIDE_PX`] (or zero), or I/O errors, naming `path`.
 pub fn write_flo(path: &Path, flow: &FlowImage) -> Result<(), ImageIoError> {
     let bytes =
         encode_flo(flow).map_err(|e| ImageIoError::new(path, ImageProblem::CorruptFlo(e)))?;
@@ -630,6 +647,19 @@ mod tests {
             .collect();
         names.sort();
         names
+    }
+
+    #[test]
+    fn sizes_are_checked_and_views_lend_the_pixels() {
+        assert!(Gray8Image::from_vec(3, 2, vec![0; 5]).is_err());
+        assert!(Gray8Image::from_vec(usize::MAX, 2, Vec::new()).is_err());
+        let img = Gray16Image::from_fn(3, 2, |x, y| (10 * y + x) as u16);
+        let view = img.view();
+        assert_eq!(view.size(), (3, 2));
+        assert_eq!(view.get(2, 1), Some(&12));
+        assert_eq!(view.get(3, 0), None);
+        assert_eq!(img.get(1, 1), Some(&11));
+        assert!(core::ptr::eq(view.row(0).unwrap(), &img.as_slice()[..3]));
     }
 
     #[test]

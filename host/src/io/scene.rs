@@ -80,9 +80,9 @@ pub const HEAT_DIR: &str = "heat";
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SceneCamera {
     /// Image width, pixels.
-    pub width: u32,
+    pub width: usize,
     /// Image height, pixels.
-    pub height: u32,
+    pub height: usize,
     /// Focal length along x, pixels.
     pub fx: f32,
     /// Focal length along y, pixels.
@@ -638,9 +638,9 @@ impl Scene {
             return Err(invalid(&dir.join(RGB_DIR), "no frames"));
         }
         let (w, h) = (self.camera.width, self.camera.height);
-        let sizes_ok = |sub: &str, count: usize, dims: &mut dyn Iterator<Item = (u32, u32)>| {
+        let sizes_ok = |sub: &str, count: usize, dims: &mut dyn Iterator<Item = (usize, usize)>| {
             let path = dir.join(sub);
-            let dims: Vec<(u32, u32)> = dims.collect();
+            let dims: Vec<(usize, usize)> = dims.collect();
             if dims.len() != count {
                 return Err(invalid(
                     &path,

@@ -121,15 +121,16 @@ where
     let mut pushes = Vec::new();
     let mut t = 0;
     loop {
-        let captured = camera.capture()?;
-        let observation = tracker.observe(captured.clone())?;
-        let frame = &captured;
+        // The tracker keeps the frame (its next step's previous one) and lends it back.
+        let observation = tracker.observe(camera.capture()?)?;
+        let frame = tracker
+            .last_frame()
+            .expect("a successful observe keeps its frame");
         let (w, h) = frame.size();
         let scratch = action_buf.get_or_insert_with(|| ActionBuf::new(&cfg, w, h));
         let action = find_action(
-            &ImageView::packed(w, h, &observation.static_seg.heatmap)
-                .map_err(EpisodeError::Action)?,
-            &ImageView::packed(w, h, frame.depth_m.as_slice()).map_err(EpisodeError::Action)?,
+            &observation.static_seg.heatmap.view(),
+            &frame.depth_m.view(),
             &ImageView::packed(w, h, &observation.mask).map_err(EpisodeError::Action)?,
             &frame.intrinsics,
             &cfg,

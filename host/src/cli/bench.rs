@@ -28,12 +28,16 @@
 //! only objects the static segmentation already separated, does not. Per push index `t`,
 //! [`BenchReport::partial_push_share`] is the fraction of the pushes `t` made that did.
 //!
-//! Scenes run in parallel (rayon) and are merged in scene order: the tables are the same
-//! for a seed whatever the thread count; only the times vary.
+//! Scenes run in parallel on a fixed set of worker threads ([`run_bench`]; memory and
+//! threads stay flat in the number of scenes) and are merged in scene order: the tables
+//! are the same for a seed whatever the thread count; only the times vary.
 
-use std::collections::BTreeMap;
+use core::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::{
+    collections::BTreeMap,
+    sync::{Mutex, PoisonError},
+};
 
-use rayon::prelude::*;
 use riseg_core::{Config, Pose};
 use serde::{Deserialize, Serialize};
 
@@ -358,23 +362,56 @@ fn place_scene(seed: u64, layout: Layout) -> Result<(SimScene, u64), SimError> {
     placed.map(|found| (found.value, found.seed))
 }
 
-/// Runs every scene (in parallel) and builds the report; `on_scene` is called as each
-/// scene finishes (from worker threads).
+/// Runs every scene and builds the report; `on_scene` is called as each scene finishes
+/// (from worker threads).
+///
+/// Scenes run on as many plain worker threads as rayon's global pool has
+/// ([`rayon::current_num_threads`], so `RAYON_NUM_THREADS` applies), each taking the next
+/// scene when it finishes one: at most that many scenes are in memory at once, and the
+/// thread count does not grow with the number of scenes. (Scenes as rayon tasks would
+/// not bound this: a worker waiting for the renderer's or the flow's parallel work steals
+/// further scenes and nests them on its stack.) After a scene fails, no new scene starts.
 ///
 /// # Errors
-/// The first [`BenchError`] in scene order.
+/// The first [`BenchError`] in scene order among the scenes run.
 pub fn run_bench(
     cfg: &BenchConfig,
     on_scene: impl Fn(&SceneResult) + Sync,
 ) -> Result<(BenchReport, Vec<SceneResult>), BenchError> {
-    let results: Vec<SceneResult> = (0..cfg.scenes)
-        .into_par_iter()
-        .map(|i| {
-            let r = run_scene(cfg, i)?;
-            on_scene(&r);
-            Ok(r)
-        })
-        .collect::<Result<_, BenchError>>()?;
+    let workers = rayon::current_num_threads().clamp(1, cfg.scenes.max(1));
+    let next_scene = AtomicUsize::new(0);
+    let failed = AtomicBool::new(false);
+    let slots: Mutex<Vec<Option<Result<SceneResult, BenchError>>>> =
+        Mutex::new((0..cfg.scenes).map(|_| None).collect());
+    std::thread::scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|| {
+                loop {
+                    let scene = next_scene.fetch_add(1, Ordering::Relaxed);
+                    if scene >= cfg.scenes || failed.load(Ordering::Relaxed) {
+                        break;
+                    }
+                    let result = run_scene(cfg, scene);
+                    match &result {
+                        Ok(r) => on_scene(r),
+                        Err(_) => failed.store(true, Ordering::Relaxed),
+                    }
+                    let mut slots = slots.lock().unwrap_or_else(PoisonError::into_inner);
+                    if let Some(slot) = slots.get_mut(scene) {
+                        *slot = Some(result);
+                    }
+                }
+            });
+        }
+    });
+    let mut results = Vec::with_capacity(cfg.scenes);
+    for slot in slots.into_inner().unwrap_or_else(PoisonError::into_inner) {
+        match slot {
+            Some(Ok(r)) => results.push(r),
+            Some(Err(e)) => return Err(e),
+            None => {}
+        }
+    }
     Ok((report(&results), results))
 }
 
@@ -621,9 +658,9 @@ mod command {
     use std::path::PathBuf;
 
     use crate::cli::bench::{self, BenchConfig};
-    use crate::io::write_atomic;
+    use crate::io::{check_writable, write_atomic};
     use crate::rig::episode::Stop;
-    use anyhow::Context as _;
+    use anyhow::{Context as _, bail};
     use clap::Args;
     use indicatif::{ProgressBar, ProgressStyle};
 
@@ -697,6 +734,13 @@ Example:
 
     pub(in crate::cli) fn command(args: &BenchArgs) -> anyhow::Result<()> {
         let settings = args.config.load()?.settings();
+        if args.scenes == 0 {
+            bail!("--scenes 0: nothing to benchmark (give at least 1 scene)");
+        }
+        if let Some(path) = &args.json {
+            // Before the run, not after it.
+            check_writable(path).with_context(|| format!("cannot write {}", path.display()))?;
+        }
         let cfg = BenchConfig {
             layout: args.layout.layout(),
             core: settings.core,
@@ -727,12 +771,19 @@ Example:
             bar.inc(1);
         })?;
         bar.finish_and_clear();
+        // The file first: a closed standard output must not lose it.
+        if let Some(path) = &args.json {
+            let mut json = serde_json::to_vec_pretty(&report).context("encoding the report")?;
+            json.push(b'\n');
+            write_atomic(path, &json).with_context(|| format!("writing {}", path.display()))?;
+            log::info!("wrote {}", path.display());
+        }
         let refused = results
             .iter()
             .filter(|r| matches!(r.stop, Stop::Refused(_)))
             .count();
-        println!(
-            "{} {} scenes, seed {}; pushes per scene: {}{}",
+        say!(
+            "{} {} scenes, seed {}; pushes per scene: {}{}\n",
             args.scenes,
             cfg.layout,
             args.seed,
@@ -746,7 +797,7 @@ Example:
             } else {
                 String::new()
             }
-        );
+        )?;
         if args.per_scene {
             for r in &results {
                 let frames: Vec<String> = r
@@ -775,23 +826,16 @@ Example:
                         )
                     })
                     .collect();
-                println!(
-                    "scene {:>3} (sim seed {:>20}): {}  [{:?}]",
+                say!(
+                    "scene {:>3} (sim seed {:>20}): {}  [{:?}]\n",
                     r.scene,
                     r.sim_seed,
                     frames.join(" | "),
                     r.stop
-                );
+                )?;
             }
         }
-        print!("{report}");
-        if let Some(path) = &args.json {
-            let mut json = serde_json::to_vec_pretty(&report).context("encoding the report")?;
-            json.push(b'\n');
-            write_atomic(path, &json).with_context(|| format!("writing {}", path.display()))?;
-            log::info!("wrote {}", path.display());
-        }
-        Ok(())
+        say!("{report}")
     }
 }
 

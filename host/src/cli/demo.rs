@@ -482,17 +482,17 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
         })
         .with_context(|| format!("demo on simulated {layout} scene {seed}"))?;
         bar.finish_and_clear();
-        println!(
-            "riseg demo: simulated {layout} scene {}, {} pushes; {}.",
+        say!(
+            "riseg demo: simulated {layout} scene {}, {} pushes; {}.\n",
             report.seed,
             report.frames.len().saturating_sub(1),
             crate::cli::demo::stop_text(&report.stop)
-        );
-        print!("{}", crate::cli::demo::table(&report));
-        println!(
-            "pictures and report: {}",
+        )?;
+        say!("{}", crate::cli::demo::table(&report))?;
+        say!(
+            "pictures and report: {}\n",
             args.out.join("report.md").display()
-        );
+        )?;
         Ok(())
     }
 }

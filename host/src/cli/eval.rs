@@ -597,6 +597,10 @@ Example:
     }
 
     pub(in crate::cli) fn command(args: &EvalArgs) -> anyhow::Result<()> {
+        if let Some(path) = &args.json {
+            crate::io::check_writable(path)
+                .with_context(|| format!("cannot write {}", path.display()))?;
+        }
         let pairs = eval::find_frame_pairs(&args.gt, &args.pred)?;
         let poses = eval::dataset_poses(&args.gt)?;
         // The ceiling scores every ground-truth frame once more (every scene has poses).
@@ -629,12 +633,12 @@ Example:
                 scene::POSES_FILE
             );
         }
-        print!("{report}");
+        // The file first: a closed standard output must not lose it.
         if let Some(path) = &args.json {
             report.write_json(path)?;
             log::info!("wrote {}", path.display());
         }
-        Ok(())
+        say!("{report}")
     }
 }
 

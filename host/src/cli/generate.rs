@@ -335,11 +335,11 @@ mod command {
         })
         .with_context(|| format!("generating {scenes} {layout} scenes into {}", out.display()))?;
         bar.finish();
-        println!(
-            "wrote {scenes} {layout} scenes to {}; previews in {}",
+        say!(
+            "wrote {scenes} {layout} scenes to {}; previews in {}\n",
             out.display(),
             out.join(PREVIEW_DIR).display()
-        );
+        )?;
         Ok(())
     }
 }

@@ -1,4 +1,16 @@
 //! The `riseg` subcommands, one module each, and what only commands use.
+//!
+//! Exit codes: 0 success (also when standard output is closed early, e.g. `riseg eval ... |
+//! head`: what was cut is the reader's choice); 1 an error, printed to stderr as one line
+//! naming the file and the problem; 2 bad arguments (clap's usage message).
+
+/// `print!` that returns an error (naming standard output) instead of panicking when
+/// standard output is closed or full; `?` it.
+macro_rules! say {
+    ($($arg:tt)*) => {
+        $crate::cli::write_stdout(format_args!($($arg)*))
+    };
+}
 
 pub mod bench;
 pub mod config;
@@ -10,7 +22,12 @@ pub mod preview;
 pub mod run;
 mod segment;
 
-use std::process::ExitCode;
+use std::{
+    io::{self, Write as _},
+    process::ExitCode,
+};
+
+use anyhow::Context as _;
 
 use clap::{Parser, Subcommand, ValueEnum};
 
@@ -178,11 +195,29 @@ pub fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(error) if closed_stdout(&error) => ExitCode::SUCCESS,
         Err(error) => {
             eprintln!("error: {}", error_text(&error));
             ExitCode::FAILURE
         }
     }
+}
+
+/// Writes `text` to standard output and flushes it (see [`say!`]).
+pub(crate) fn write_stdout(text: core::fmt::Arguments<'_>) -> anyhow::Result<()> {
+    let mut out = io::stdout().lock();
+    out.write_fmt(text)
+        .and_then(|()| out.flush())
+        .context("writing to standard output")
+}
+
+/// Whether `error` is standard output closed by its reader (a broken pipe).
+fn closed_stdout(error: &anyhow::Error) -> bool {
+    error.chain().any(|cause| {
+        cause
+            .downcast_ref::<io::Error>()
+            .is_some_and(|e| e.kind() == io::ErrorKind::BrokenPipe)
+    })
 }
 
 /// Sends `log` records to stderr as `level: message`: warnings and errors by default,

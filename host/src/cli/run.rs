@@ -409,11 +409,11 @@ Examples:
             bar.inc(1);
         }
         bar.finish_and_clear();
-        println!(
-            "wrote {frames} masks of {} scenes to {}",
+        say!(
+            "wrote {frames} masks of {} scenes to {}\n",
             scenes.len(),
             args.out.display()
-        );
+        )?;
         Ok(())
     }
 }

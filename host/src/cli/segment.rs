@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use crate::cli::config::ConfigArg;
-use crate::io::image::ImageIoError;
+use crate::io::image::{read_gray16, read_rgb8, read_sized};
 use crate::io::scene::{self, SceneCamera};
 use crate::segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams, viz};
 use anyhow::{Context as _, bail};
@@ -84,10 +84,8 @@ pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
     let (camera_path, rgb_path, depth_path) = segment_inputs(args)?;
     let camera = SceneCamera::read(&camera_path)?;
     let (width, height) = (camera.width, camera.height);
-    let rgb = crate::io::image::read_rgb8(&rgb_path)?;
-    ImageIoError::expect_size(&rgb_path, &rgb, width, height)?;
-    let depth = crate::io::image::read_gray16(&depth_path)?;
-    ImageIoError::expect_size(&depth_path, &depth, width, height)?;
+    let rgb = read_sized(&rgb_path, width, height, read_rgb8)?;
+    let depth = read_sized(&depth_path, width, height, read_gray16)?;
 
     let depth_m: Vec<f32> = depth
         .as_slice()
@@ -113,15 +111,15 @@ pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
         crate::io::image::write_rgb8(path, &viz::side_by_side(&rgb, seg))?;
     }
     let n = out.plane.normal;
-    println!(
+    say!(
         "{} segments; table plane normal ({:.3}, {:.3}, {:.3}), camera {:.3} m above it; \
-         labels -> {}",
+         labels -> {}\n",
         seg.segment_count(),
         n.x,
         n.y,
         n.z,
         out.plane.offset_m,
         args.output.display()
-    );
+    )?;
     Ok(())
 }

@@ -31,7 +31,7 @@ use riseg_core::ImageView;
 use super::write_atomic;
 
 use image::{
-    DynamicImage, ExtendedColorType, ImageEncoder,
+    DynamicImage, ExtendedColorType, ImageDecoder as _, ImageEncoder,
     codecs::png::{CompressionType, FilterType, PngDecoder, PngEncoder},
 };
 
@@ -42,6 +42,11 @@ pub struct Image<T> {
     height: usize,
     data: Vec<T>,
 }
+
+/// The most pixels riseg decodes from one file or accepts in a scene's camera: 16.8
+/// million (4096 x 4096, a 5K frame). A PNG header declaring more is refused before any
+/// pixel memory is allocated, so a corrupt or hostile 74-byte file cannot exhaust memory.
+pub const MAX_IMAGE_PIXELS: usize = 1 << 24;
 
 /// 8-bit RGB pixels.
 pub type RgbImage = Image<[u8; 3]>;
@@ -215,6 +220,14 @@ pub enum ImageProblem {
         /// Height in the file.
         height: usize,
     },
+    /// The file declares more than [`MAX_IMAGE_PIXELS`]; it was not decoded.
+    #[error("declares {width}x{height} pixels, more than the {MAX_IMAGE_PIXELS} riseg reads")]
+    TooManyPixels {
+        /// Declared width.
+        width: usize,
+        /// Declared height.
+        height: usize,
+    },
     /// An image to write has a side beyond what a PNG can hold (`u32`).
     #[error("a {width}x{height} image is too large for a PNG")]
     TooLargeForPng {
@@ -280,11 +293,42 @@ fn read_bytes(path: &Path) -> Result<Vec<u8>, ImageIoError> {
     fs::read(path).map_err(|e| ImageIoError::io(path, e))
 }
 
-fn decode_png(path: &Path) -> Result<DynamicImage, ImageIoError> {
+/// The PNG decoder of `path` with its header read, and the size the header declares.
+fn png_header(
+    path: &Path,
+) -> Result<(PngDecoder<BufReader<fs::File>>, usize, usize), ImageIoError> {
     let file = fs::File::open(path).map_err(|e| ImageIoError::io(path, e))?;
+    let decoder = PngDecoder::new(BufReader::new(file))
+        .map_err(|e| ImageIoError::new(path, ImageProblem::CorruptPng(e)))?;
+    let (width, height) = decoder.dimensions();
+    Ok((decoder, width as usize, height as usize))
+}
+
+/// Decodes `path` after checking the declared size against [`MAX_IMAGE_PIXELS`] (the
+/// decoder's allocation is capped to match).
+fn decode_png(path: &Path) -> Result<DynamicImage, ImageIoError> {
+    let (mut decoder, width, height) = png_header(path)?;
+    if width.saturating_mul(height) > MAX_IMAGE_PIXELS {
+        return Err(ImageIoError::new(
+            path,
+            ImageProblem::TooManyPixels { width, height },
+        ));
+    }
     let corrupt = |e| ImageIoError::new(path, ImageProblem::CorruptPng(e));
-    let decoder = PngDecoder::new(BufReader::new(file)).map_err(corrupt)?;
+    let mut limits = image::Limits::default();
+    // 16-bit RGBA, the widest PNG pixel, plus room for the decoder's own rows.
+    limits.max_alloc = Some(2 * (MAX_IMAGE_PIXELS as u64) * 8);
+    decoder.set_limits(limits).map_err(corrupt)?;
     DynamicImage::from_decoder(decoder).map_err(corrupt)
+}
+
+/// Whether `path` starts with the PNG signature (`false` if it cannot be read).
+fn looks_like_png(path: &Path) -> bool {
+    const SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
+    let mut head = [0u8; 8];
+    fs::File::open(path)
+        .and_then(|mut f| io::Read::read_exact(&mut f, &mut head))
+        .is_ok_and(|()| head == SIGNATURE)
 }
 
 fn format_name(image: &DynamicImage) -> String {
@@ -312,7 +356,8 @@ fn wrong_format(path: &Path, expected: &'static str, found: &DynamicImage) -> Im
 }
 
 /// Reads `path` with `read` (one of this module's readers) and checks that the image is
-/// `width` x `height` pixels.
+/// `width` x `height` pixels. A PNG's declared size is checked before it is decoded, so a
+/// file of the wrong size costs no pixel memory.
 ///
 /// # Errors
 /// `read`'s errors, or [`ImageProblem::WrongSize`] naming `path`.
@@ -322,6 +367,20 @@ pub fn read_sized<T>(
     height: usize,
     read: impl FnOnce(&Path) -> Result<Image<T>, ImageIoError>,
 ) -> Result<Image<T>, ImageIoError> {
+    if looks_like_png(path) {
+        let (_, declared_width, declared_height) = png_header(path)?;
+        if (declared_width, declared_height) != (width, height) {
+            return Err(ImageIoError::new(
+                path,
+                ImageProblem::WrongSize {
+                    expected_width: width,
+                    expected_height: height,
+                    width: declared_width,
+                    height: declared_height,
+                },
+            ));
+        }
+    }
     let image = read(path)?;
     ImageIoError::expect_size(path, &image, width, height)?;
     Ok(image)
@@ -523,6 +582,14 @@ pub enum FloFormatError {
         /// Bytes present.
         found: usize,
     },
+    /// A vector component is NaN or infinite (unknown flow is written as `1e10`, finite).
+    #[error("the vector of pixel ({x}, {y}) is not finite; unknown flow is written as 1e10")]
+    NonFinite {
+        /// Column of the first such pixel.
+        x: usize,
+        /// Row of the first such pixel.
+        y: usize,
+    },
     /// A flow to encode has a side of zero or above [`FLO_MAX_SIDE_PX`].
     #[error("cannot write a {width}x{height} flow; each side must be 1..={FLO_MAX_SIDE_PX}")]
     Unwritable {
@@ -600,6 +667,12 @@ pub fn decode_flo(bytes: &[u8]) -> Result<FlowImage, FloFormatError> {
             ]
         })
         .collect();
+    if let Some(i) = data.iter().position(|v| !(v[0].is_finite() && v[1].is_finite())) {
+        return Err(FloFormatError::NonFinite {
+            x: i % width,
+            y: i / width,
+        });
+    }
     // The sides are checked and the length matched, so this cannot fail.
     Image::from_vec(width, height, data).map_err(|_| FloFormatError::Length {
         width,
@@ -647,6 +720,60 @@ mod tests {
             .collect();
         names.sort();
         names
+    }
+
+    /// A real 1x1 16-bit grey PNG whose header is patched to declare `width x height`
+    /// (the IHDR checksum redone, so the decoder accepts the header).
+    fn png_declaring(width: u32, height: u32) -> Vec<u8> {
+        fn crc32(bytes: &[u8]) -> u32 {
+            let mut crc = !0u32;
+            for &b in bytes {
+                crc ^= u32::from(b);
+                for _ in 0..8 {
+                    crc = if crc & 1 == 1 {
+                        (crc >> 1) ^ 0xEDB8_8320
+                    } else {
+                        crc >> 1
+                    };
+                }
+            }
+            !crc
+        }
+        let mut png = encode_png(Path::new("x"), &[0, 0], (1, 1), ExtendedColorType::L16).unwrap();
+        png[16..20].copy_from_slice(&width.to_be_bytes());
+        png[20..24].copy_from_slice(&height.to_be_bytes());
+        let crc = crc32(&png[12..29]);
+        png[29..33].copy_from_slice(&crc.to_be_bytes());
+        png
+    }
+
+    #[test]
+    fn a_header_declaring_a_huge_or_wrong_size_is_refused_before_decoding() {
+        let dir = temp_dir("huge");
+        let huge = dir.join("huge.png");
+        fs::write(&huge, png_declaring(100_000, 100_000)).unwrap();
+        let e = read_gray16(&huge).unwrap_err();
+        assert!(
+            matches!(
+                e.problem,
+                ImageProblem::TooManyPixels { width: 100_000, .. }
+            ),
+            "{e}"
+        );
+        assert!(
+            e.to_string().starts_with(&huge.display().to_string()),
+            "{e}"
+        );
+        // Within the cap but not the camera's size: refused from the header alone (the
+        // file holds one pixel of data, so decoding would fail differently).
+        let wrong = dir.join("wrong.png");
+        fs::write(&wrong, png_declaring(640, 480)).unwrap();
+        let e = read_sized(&wrong, 320, 240, read_gray16).unwrap_err();
+        assert!(
+            matches!(e.problem, ImageProblem::WrongSize { width: 640, .. }),
+            "{e}"
+        );
+        fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -853,6 +980,13 @@ mod tests {
             decode_flo(&huge),
             Err(FloFormatError::BadSize { .. })
         ));
+        // NaN in pixel (1, 2) of the 4-wide flow: vector 9, its dy at byte 12 + 9 * 8 + 4.
+        let mut nan = b.clone();
+        nan[12 + 9 * 8 + 4..][..4].copy_from_slice(&f32::NAN.to_le_bytes());
+        assert_eq!(
+            decode_flo(&nan),
+            Err(FloFormatError::NonFinite { x: 1, y: 2 })
+        );
         let mut neg = b.clone();
         neg[8..12].copy_from_slice(&(-3i32).to_le_bytes());
         assert!(matches!(

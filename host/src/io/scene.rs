@@ -52,8 +52,8 @@ use serde::{Deserialize, Serialize};
 
 use super::write_atomic;
 use crate::io::image::{
-    FlowImage, Gray16Image, Image, ImageIoError, RgbImage, read_flo, read_gray_widened,
-    read_gray16, read_rgb8, write_flo, write_gray16, write_rgb8,
+    FlowImage, Gray16Image, Image, ImageIoError, MAX_IMAGE_PIXELS, RgbImage, read_flo,
+    read_gray_widened, read_gray16, read_rgb8, write_flo, write_gray16, write_rgb8,
 };
 
 /// Intrinsics file name.
@@ -147,10 +147,34 @@ impl SceneCamera {
                 self.fx, self.fy
             ));
         }
-        if self.depth_unit_m <= 0.0 {
+        if self.depth_unit_m <= 0.0 || self.depth_unit_m > 1.0 {
             return Some(format!(
-                "depth_unit_m must be positive, found {}",
+                "depth_unit_m must be in (0, 1] metres, found {}",
                 self.depth_unit_m
+            ));
+        }
+        if self.width.saturating_mul(self.height) > MAX_IMAGE_PIXELS {
+            return Some(format!(
+                "image size {}x{} is more than the {MAX_IMAGE_PIXELS} pixels riseg reads",
+                self.width, self.height
+            ));
+        }
+        // A horizontal field of view between about 1 and 170 degrees, and the principal
+        // point on the image: anything else is a unit mistake (metres for pixels, a
+        // normalised camera matrix), not a camera.
+        let (w, h) = (self.width as f32, self.height as f32);
+        let fov_ok = |f: f32, side: f32| f >= side / 20.0 && f <= 100.0 * side;
+        if !fov_ok(self.fx, w) || !fov_ok(self.fy, h) {
+            return Some(format!(
+                "focal lengths fx {} and fy {} pixels do not fit a {}x{} camera \
+                 (expected width/20 to 100 x width)",
+                self.fx, self.fy, self.width, self.height
+            ));
+        }
+        if !(0.0..=w).contains(&self.cx) || !(0.0..=h).contains(&self.cy) {
+            return Some(format!(
+                "principal point ({}, {}) lies off the {}x{} image",
+                self.cx, self.cy, self.width, self.height
             ));
         }
         None

@@ -667,7 +667,10 @@ pub fn decode_flo(bytes: &[u8]) -> Result<FlowImage, FloFormatError> {
             ]
         })
         .collect();
-    if let Some(i) = data.iter().position(|v| !(v[0].is_finite() && v[1].is_finite())) {
+    if let Some(i) = data
+        .iter()
+        .position(|v| !(v[0].is_finite() && v[1].is_finite()))
+    {
         return Err(FloFormatError::NonFinite {
             x: i % width,
             y: i / width,

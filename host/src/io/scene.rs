@@ -163,11 +163,12 @@ impl SceneCamera {
         // point on the image: anything else is a unit mistake (metres for pixels, a
         // normalised camera matrix), not a camera.
         let (w, h) = (self.width as f32, self.height as f32);
-        let fov_ok = |f: f32, side: f32| f >= side / 20.0 && f <= 100.0 * side;
-        if !fov_ok(self.fx, w) || !fov_ok(self.fy, h) {
+        let side = w.max(h);
+        let fov_ok = |f: f32| f >= side / 20.0 && f <= 100.0 * side;
+        if !fov_ok(self.fx) || !fov_ok(self.fy) {
             return Some(format!(
                 "focal lengths fx {} and fy {} pixels do not fit a {}x{} camera \
-                 (expected width/20 to 100 x width)",
+                 (expected 1/20 to 100 times the longer side)",
                 self.fx, self.fy, self.width, self.height
             ));
         }

@@ -395,7 +395,7 @@ fn every_bad_folder_is_an_error_naming_the_file() {
         (
             "poses_field",
             r#"{"frame": []}"#.to_owned(),
-            "missing field `frames`",
+            "unknown field `frame`, expected `frames`",
         ),
         (
             "poses_frames",

@@ -660,7 +660,7 @@ mod command {
     use crate::cli::bench::{self, BenchConfig};
     use crate::io::{check_writable, write_atomic};
     use crate::rig::episode::Stop;
-    use anyhow::{Context as _, bail};
+    use anyhow::Context as _;
     use clap::Args;
     use indicatif::{ProgressBar, ProgressStyle};
 
@@ -706,8 +706,8 @@ Example:
 
     #[derive(Debug, Args)]
     pub(in crate::cli) struct BenchArgs {
-        /// Number of scenes.
-        #[arg(long, default_value_t = 23)]
+        /// Number of scenes (1 to 10000).
+        #[arg(long, default_value_t = 23, value_parser = crate::cli::scene_count)]
         scenes: usize,
         /// Dataset seed (scene i uses the simulator seed `riseg gen` derives from it).
         #[arg(long, default_value_t = 1)]
@@ -734,9 +734,6 @@ Example:
 
     pub(in crate::cli) fn command(args: &BenchArgs) -> anyhow::Result<()> {
         let settings = args.config.load()?.settings();
-        if args.scenes == 0 {
-            bail!("--scenes 0: nothing to benchmark (give at least 1 scene)");
-        }
         if let Some(path) = &args.json {
             // Before the run, not after it.
             check_writable(path).with_context(|| format!("cannot write {}", path.display()))?;

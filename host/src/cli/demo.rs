@@ -138,6 +138,7 @@ pub fn run_demo(
     md.push_str(&bench_spread(&report, settings)?);
     let path = out.join("report.md");
     write_atomic(&path, md.as_bytes()).with_context(|| format!("writing {}", path.display()))?;
+    remove_stale_frames(out, report.frames.len())?;
     Ok(report)
 }
 
@@ -163,6 +164,30 @@ fn demo_frame(out: &Path, f: &EpisodeFrame<'_>) -> anyhow::Result<DemoFrame> {
             Decision::Stop(_) => None,
         },
     })
+}
+
+/// Removes the `frame_N.png` pictures with `N >= frames` that an earlier, longer demo run
+/// left in `out`, so the folder shows this run only. Other files are not touched.
+fn remove_stale_frames(out: &Path, frames: usize) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    let stale = |name: &str| {
+        name.strip_prefix("frame_")
+            .and_then(|n| n.strip_suffix(".png"))
+            .filter(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+            .and_then(|n| n.parse::<usize>().ok())
+            .is_some_and(|n| n >= frames)
+    };
+    let listing = std::fs::read_dir(out).with_context(|| format!("listing {}", out.display()))?;
+    for entry in listing {
+        let path = entry
+            .with_context(|| format!("listing {}", out.display()))?
+            .path();
+        if path.file_name().and_then(|n| n.to_str()).is_some_and(stale) {
+            std::fs::remove_file(&path)
+                .with_context(|| format!("removing the stale {}", path.display()))?;
+        }
+    }
+    Ok(())
 }
 
 const YELLOW: [u8; 3] = [255, 230, 0];

@@ -78,7 +78,7 @@ pub enum EvalError {
         scene: PathBuf,
     },
     /// A PNG in a `label/` folder is not named by a frame number.
-    #[error("{}: a label map must be named by its frame number, like 000000.png", path.display())]
+    #[error("{}: a label map must be named by its frame number in six digits, like 000000.png", path.display())]
     BadFrameName {
         /// The file.
         path: PathBuf,
@@ -192,7 +192,7 @@ pub fn find_frame_pairs(gt_root: &Path, pred_root: &Path) -> Result<Vec<FramePai
             let push = gt
                 .file_stem()
                 .and_then(|s| s.to_str())
-                .filter(|s| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit()))
+                .filter(|s| s.len() == 6 && s.bytes().all(|b| b.is_ascii_digit()))
                 .and_then(|s| s.parse::<u32>().ok())
                 .ok_or_else(|| EvalError::BadFrameName { path: gt.clone() })?;
             frames.push((push, gt));

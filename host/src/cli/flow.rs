@@ -45,8 +45,8 @@ pub(super) struct FlowArgs {
     /// Speed/accuracy preset.
     #[arg(long, value_enum, default_value_t = Preset::Medium)]
     preset: Preset,
-    /// Worker threads; 0 uses every core.
-    #[arg(long, default_value_t = 0)]
+    /// Worker threads; 0 uses every core (at most 256).
+    #[arg(long, default_value_t = 0, value_parser = crate::cli::thread_count)]
     threads: usize,
     /// Settings file (TOML): its [flow] keys replace those of --preset (the other
     /// sections are checked, not used). See `riseg config --help`.

@@ -203,6 +203,37 @@ pub fn main() -> ExitCode {
     }
 }
 
+/// Most scenes one `gen` or `bench` run makes: a bound on time and disk a typo cannot
+/// exceed (a scene is about 2 MB on disk).
+pub const MAX_SCENES: usize = 10_000;
+/// Most worker threads `--threads` starts.
+pub const MAX_THREADS: usize = 256;
+
+/// Parses `--scenes`: 1 to [`MAX_SCENES`].
+fn scene_count(text: &str) -> Result<usize, String> {
+    bounded(text, 1, MAX_SCENES)
+}
+
+/// Most pushes `gen` scripts per scene.
+pub const MAX_PUSHES: usize = 20;
+
+/// Parses `--pushes`: 0 to [`MAX_PUSHES`].
+fn push_count(text: &str) -> Result<usize, String> {
+    bounded(text, 0, MAX_PUSHES)
+}
+
+/// Parses `--threads`: 0 (every core) to [`MAX_THREADS`].
+fn thread_count(text: &str) -> Result<usize, String> {
+    bounded(text, 0, MAX_THREADS)
+}
+
+fn bounded(text: &str, min: usize, max: usize) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(n) if (min..=max).contains(&n) => Ok(n),
+        _ => Err(format!("expected a whole number from {min} to {max}")),
+    }
+}
+
 /// Writes `text` to standard output and flushes it (see [`say!`]).
 pub(crate) fn write_stdout(text: core::fmt::Arguments<'_>) -> anyhow::Result<()> {
     let mut out = io::stdout().lock();

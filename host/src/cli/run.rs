@@ -271,7 +271,7 @@ pub fn run_scene<S: StaticSegmenter, F: FlowEstimator>(
     out: &Path,
     on_frame: impl FnMut(usize),
 ) -> Result<usize, RunError> {
-    let scene = Scene::read(dir)?;
+    let scene = Scene::read_frames(dir)?;
     let given = inputs.read_scene(dir, &scene)?;
     let masks = replay_scene(tracker, &scene, given, on_frame).map_err(|(frame, source)| {
         RunError::Track {
@@ -317,8 +317,8 @@ mod command {
 Run RISeg on recorded scenes (the pushes already happened) and write its masks.
 
 For each scene folder (the format `riseg gen` writes and `riseg gen --help` describes: \
-scene_camera.json, rgb/NNNNNN.png, depth/NNNNNN.png; label/ and actions.json are not \
-needed), frame 0 is segmented by the built-in static segmenter; for every later frame the \
+scene_camera.json, rgb/NNNNNN.png, depth/NNNNNN.png; label/, flow/, actions.json and \
+poses.json are not read), frame 0 is segmented by the built-in static segmenter; for every later frame the \
 optical flow from the previous frame, the new static segmentation and riseg-core's \
 UpdateMask carry the mask forward and split what moved differently. The mask of frame t \
 is written to PRED/<scene>/label/<t>.png (16-bit, 0 = background), the layout \
@@ -400,11 +400,21 @@ Examples:
             flow: args.flow_dir.clone(),
             statics: args.static_dir.clone(),
         };
-        let mut frames = 0;
         for dir in &scenes {
+            super::refuse_output_over_input(dir, &args.out)?;
+        }
+        let mut frames = 0;
+        for (done, dir) in scenes.iter().enumerate() {
             let name = dir.file_name().unwrap_or(dir.as_os_str()).to_string_lossy();
             frames += run_scene(&mut tracker, dir, &inputs, &args.out, |t| {
                 bar.set_message(format!("{name}: frame {t}"));
+            })
+            .with_context(|| match done {
+                0 => "no masks written".to_owned(),
+                _ => format!(
+                    "the masks of the {done} scenes before {name} are complete in {}",
+                    args.out.display()
+                ),
             })?;
             bar.inc(1);
         }
@@ -416,6 +426,25 @@ Examples:
         )?;
         Ok(())
     }
+}
+
+/// Refuses an output folder where the masks of scene `dir` would land in `dir` itself
+/// (`--out` the dataset): they would replace its ground-truth `label/` files.
+fn refuse_output_over_input(dir: &Path, out: &Path) -> anyhow::Result<()> {
+    let target = out.join(scene_name(dir));
+    let same = match (std::fs::canonicalize(&target), std::fs::canonicalize(dir)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same {
+        anyhow::bail!(
+            "--out {}: the masks of {} would replace its own {LABEL_DIR}/ files; \
+             write them to another folder",
+            out.display(),
+            dir.display()
+        );
+    }
+    Ok(())
 }
 
 pub(in crate::cli) use command::*;

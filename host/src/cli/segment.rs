@@ -92,6 +92,17 @@ pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
         .iter()
         .map(|&d| camera.depth_m(d))
         .collect();
+    if !depth_m
+        .iter()
+        .any(|&z| riseg_core::image::valid_depth(z).is_some())
+    {
+        bail!(
+            "{}: no depth reading: every pixel is 0 (no return), 65535 (saturated) or \
+             beyond {} m",
+            depth_path.display(),
+            riseg_core::image::MAX_DEPTH_M
+        );
+    }
     let (w, h) = (width, height);
     let frame = RgbdFrame::new(w, h, rgb.as_slice(), &depth_m)?;
     let mut segmenter = ClassicalSegmenter::new(SegmenterParams {

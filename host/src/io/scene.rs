@@ -7,7 +7,8 @@
 //!     scene_camera.json   {"width": 640, "height": 480, "fx": 615.0, "fy": 615.0,
 //!                          "cx": 319.5, "cy": 239.5, "depth_unit_m": 0.001}
 //!     rgb/000000.png      8-bit RGB; frame t = the scene after t pushes (000000 = initial)
-//!     depth/000000.png    16-bit, depth_unit_m units (millimetres), 0 = no reading
+//!     depth/000000.png    16-bit, depth_unit_m units (millimetres), 0 = no reading,
+//!                          65535 = saturated (no reading either)
 //!     label/000000.png    16-bit instance ids, 0 = table/background (optional: ground truth)
 //!     flow/000000.flo     forward flow from frame t to t+1 (optional: ground truth), Middlebury
 //!     actions.json        [{"push": 1, "start_px": [u, v], "start_cam_m": [x, y, z],
@@ -21,13 +22,19 @@
 //!
 //! Contract of [`Scene::read`] (the folder may come from any tool, not only riseg):
 //! - `scene_camera.json` and `rgb/` are required; there must be at least one frame.
-//!   Frames are named with six digits from `000000` without gaps; other files are ignored
-//!   (unknown JSON fields too).
+//!   Frames are named with six digits from `000000` without gaps; other files are ignored.
+//!   A JSON file with an unknown or a missing field is an error naming the field.
+//! - The camera is a camera: at most [`MAX_IMAGE_PIXELS`] pixels, focal lengths from 1/20 to
+//!   100 times the longer side, the principal point on the image, a depth unit in (0, 1] m.
+//!   A PNG is checked against the camera's size from its header, before it is decoded.
 //! - `depth/` holds exactly as many frames as `rgb/`, all 16-bit (8-bit depth is refused);
 //!   `label/` is optional, and when present holds as many frames as `rgb/` (8- or 16-bit);
 //!   `flow/` is optional, and when present holds one `.flo` per push (frames − 1).
 //! - `actions.json` holds one entry per push, numbered `1, 2, …` in order. It may be absent
-//!   only when the scene has a single frame (no pushes).
+//!   only when the scene has a single frame (no pushes). Each push has a non-zero direction
+//!   and a length in (0, 1] m.
+//! - [`Scene::read_frames`] reads only `scene_camera.json`, `rgb/` and `depth/`, for
+//!   replaying (`riseg run`): files it does not use cannot stop it.
 //! - `poses.json` is optional; when present it holds one list per frame (`frames[t]` = after
 //!   `t` pushes) of object poses: labels from 1, each once per frame, finite numbers, and
 //!   quaternions of norm within [`POSE_QUATERNION_TOLERANCE`] of 1 (normalised on reading
@@ -78,6 +85,7 @@ pub const HEAT_DIR: &str = "heat";
 
 /// `scene_camera.json`: colour intrinsics (depth is aligned to colour) and the depth unit.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SceneCamera {
     /// Image width, pixels.
     pub width: usize,
@@ -107,10 +115,15 @@ impl SceneCamera {
         }
     }
 
-    /// Converts a depth-image value to metres (`0` stays `0.0`: no reading).
+    /// Converts a depth-image value to metres. `0` (no return) and `65535` (saturated: the
+    /// true depth is beyond what 16 bits hold) are no reading and become `0.0`.
     #[must_use]
     pub fn depth_m(&self, raw: u16) -> f32 {
-        f32::from(raw) * self.depth_unit_m
+        if raw == u16::MAX {
+            0.0
+        } else {
+            f32::from(raw) * self.depth_unit_m
+        }
     }
 
     /// Reads and checks a camera file (`scene_camera.json`), on its own: for tools that
@@ -187,6 +200,7 @@ impl SceneCamera {
 /// Everything is in the colour camera's frame (x right, y down, z forward), so a scene
 /// needs no hand-eye calibration to be read.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct PushAction {
     /// Push number, from 1.
     pub push: u32,
@@ -233,6 +247,7 @@ pub struct ObjectPose {
 
 /// One entry of `poses.json`.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 struct PoseRecord {
     label: u16,
     translation_m: [f32; 3],
@@ -241,6 +256,7 @@ struct PoseRecord {
 
 /// `poses.json`: `frames[t]` = the poses after `t` pushes.
 #[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 struct PosesFile {
     frames: Vec<Vec<PoseRecord>>,
 }
@@ -547,6 +563,22 @@ fn check_actions(path: &Path, actions: &[PushAction], pushes: usize) -> Result<(
                 format!("push {} has a non-finite value", a.push),
             ));
         }
+        if !(a.length_m > 0.0 && a.length_m <= 1.0) {
+            return Err(invalid(
+                path,
+                format!(
+                    "push {} has \"length_m\": {}, expected more than 0 and at most 1 metre",
+                    a.push, a.length_m
+                ),
+            ));
+        }
+        let [dx, dy, dz] = a.direction_cam;
+        if libm::sqrtf(dx * dx + dy * dy + dz * dz) < 1e-6 {
+            return Err(invalid(
+                path,
+                format!("push {} has a zero \"direction_cam\"", a.push),
+            ));
+        }
     }
     Ok(())
 }
@@ -563,6 +595,21 @@ impl Scene {
     /// # Errors
     /// A [`SceneError`] naming the first file or folder that breaks a rule.
     pub fn read(dir: &Path) -> Result<Self, SceneError> {
+        Self::read_parts(dir, true)
+    }
+
+    /// Reads and checks only what replaying a scene needs: the camera, colour and depth.
+    /// `label/`, `flow/`, `actions.json` and `poses.json` are neither read nor checked
+    /// (`labels`, `flow` and `poses` are `None`, `actions` empty), so a problem in a file
+    /// the caller does not use cannot stop it.
+    ///
+    /// # Errors
+    /// As [`Scene::read`], for those files.
+    pub fn read_frames(dir: &Path) -> Result<Self, SceneError> {
+        Self::read_parts(dir, false)
+    }
+
+    fn read_parts(dir: &Path, everything: bool) -> Result<Self, SceneError> {
         if !dir.is_dir() {
             return Err(SceneError::Missing {
                 path: dir.to_path_buf(),
@@ -585,7 +632,7 @@ impl Scene {
         check_frames(&depth_dir, "png", &depth_numbers, per_frame)?;
 
         let label_dir = dir.join(LABEL_DIR);
-        let has_labels = match frame_numbers(&label_dir, "png")? {
+        let has_labels = match frame_numbers(&label_dir, "png")?.filter(|_| everything) {
             Some(numbers) => {
                 check_frames(&label_dir, "png", &numbers, per_frame)?;
                 true
@@ -593,7 +640,7 @@ impl Scene {
             None => false,
         };
         let flow_dir = dir.join(FLOW_DIR);
-        let has_flow = match frame_numbers(&flow_dir, "flo")? {
+        let has_flow = match frame_numbers(&flow_dir, "flo")?.filter(|_| everything) {
             Some(numbers) => {
                 check_frames(&flow_dir, "flo", &numbers, Some((n - 1, "one per push")))?;
                 true
@@ -602,15 +649,16 @@ impl Scene {
         };
 
         let actions_path = dir.join(ACTIONS_FILE);
-        let actions: Vec<PushAction> = if n == 1 && !actions_path.exists() {
+        let actions: Vec<PushAction> = if !everything || (n == 1 && !actions_path.exists()) {
             Vec::new()
         } else {
-            read_json(&actions_path)?
+            let actions: Vec<PushAction> = read_json(&actions_path)?;
+            check_actions(&actions_path, &actions, n - 1)?;
+            actions
         };
-        check_actions(&actions_path, &actions, n - 1)?;
 
         let poses_path = dir.join(POSES_FILE);
-        let poses = if poses_path.exists() {
+        let poses = if everything && poses_path.exists() {
             Some(read_poses(&poses_path, n)?)
         } else {
             None

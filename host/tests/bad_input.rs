@@ -460,3 +460,12 @@ fn gen_and_bench_refuse_absurd_counts_and_gen_never_replaces_a_file() {
     );
     assert!(!dir.join("scene_000").exists());
 }
+
+#[test]
+fn help_documents_the_exit_codes() {
+    let out = riseg().arg("--help").output().expect("riseg runs");
+    let help = text(&out.stdout);
+    for needle in ["Exit codes: 0 success", "1 an error", "2 bad arguments"] {
+        assert!(help.contains(needle), "{needle:?} not in:\n{help}");
+    }
+}

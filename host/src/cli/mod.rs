@@ -33,13 +33,18 @@ use clap::{Parser, Subcommand, ValueEnum};
 
 use crate::sim::Layout;
 
+const EXIT_CODES: &str = "\
+Exit codes: 0 success (also when standard output is closed early, as by `| head`); \
+1 an error, printed on stderr as one line naming the file and the problem (nothing is \
+left half-written, no input is overwritten); 2 bad arguments.";
+
 /// RISeg: robot interactive object segmentation via body frame-invariant features.
 ///
 /// A robot looks at touching objects on a table with an RGB-D camera; a static segmenter
 /// merges them; riseg makes a few 2 cm pushes, samples small body frames on the objects,
 /// groups them by their spatial twists and splits what moved differently.
 #[derive(Debug, Parser)]
-#[command(name = "riseg", version, about, long_about)]
+#[command(name = "riseg", version, about, long_about, after_help = EXIT_CODES)]
 struct Cli {
     /// More diagnostics on stderr: -v notes what runs, -vv adds debugging detail. Without
     /// it, RUST_LOG sets the level and modules (RUST_LOG=riseg=debug); warnings by default.

@@ -61,7 +61,10 @@ fn the_default_command_is_the_demo_and_it_writes_pictures_and_a_report() {
         assert_eq!(img.dimensions(), (1280, 960), "{p}");
     }
     assert!(!demo.join("frame_9.png").exists(), "a stale frame stayed");
-    assert_eq!(std::fs::read(demo.join("notes.txt")).expect("notes"), b"mine");
+    assert_eq!(
+        std::fs::read(demo.join("notes.txt")).expect("notes"),
+        b"mine"
+    );
 }
 
 #[test]

@@ -462,6 +462,16 @@ fn gen_and_bench_refuse_absurd_counts_and_gen_never_replaces_a_file() {
 }
 
 #[test]
+fn demo_refuses_an_output_folder_that_is_a_file() {
+    let w = Work::new();
+    let file = w.out("taken");
+    fs::write(&file, b"a user's file").unwrap();
+    let out = run(&os(&[&"demo", &"--out", &file]));
+    assert_fails("demo --out FILE", &out, 1, &["taken"]);
+    assert_eq!(fs::read(&file).unwrap(), b"a user's file");
+}
+
+#[test]
 fn help_documents_the_exit_codes() {
     let out = riseg().arg("--help").output().expect("riseg runs");
     let help = text(&out.stdout);

@@ -552,6 +552,28 @@ mod tests {
     }
 
     #[test]
+    fn absurd_depths_are_no_reading_and_do_not_spoil_the_step() {
+        let (mut r, _) = two_moving_boxes();
+        // Every 7th pixel reads 1e38 m (a decoding error): before MAX_DEPTH_M, its share
+        // of the space origin's mean overflowed and every frame of the step was dropped.
+        r.depth_t.iter_mut().step_by(7).for_each(|z| *z = 1e38);
+        let cfg = Config::PAPER;
+        let mut samples = vec![FrameSample::EMPTY; cfg.frame_samples];
+        let mut frames = vec![BodyFrame::EMPTY; cfg.frame_samples];
+        let set = create_frames(&input(&r), &cfg, &mut samples, &mut frames).unwrap();
+        assert!(
+            set.space_origin.coords.iter().all(|c| c.is_finite()),
+            "{set:?}"
+        );
+        assert!(
+            set.space_origin.z > 0.5 && set.space_origin.z < 0.7,
+            "{set:?}"
+        );
+        assert!(set.count > 500, "{set:?}");
+        assert!(samples[..set.sampled].iter().all(|s| s.p_t.z < 1.0));
+    }
+
+    #[test]
     fn frames_without_a_reading_at_t1_are_dropped() {
         let (mut r, _) = two_moving_boxes();
         r.depth_t1.iter_mut().for_each(|z| *z = f32::NAN);

@@ -4,7 +4,8 @@
 //! accessor panics: out-of-range coordinates give `None`.
 //!
 //! Pixel conventions used across the crate:
-//! - depth: `f32` metres; `0`, negative, NaN and infinity mean "no reading" and are never used;
+//! - depth: `f32` metres; `0`, negative, NaN, infinity and anything beyond [`MAX_DEPTH_M`] mean
+//!   "no reading" and are never used;
 //! - flow: `[dx, dy]` in pixels per pixel, row-major (the Middlebury `.flo` layout);
 //! - labels: `u16`, `0` = background;
 //! - heatmap: `u8`, 0-255, high = surely inside an object.
@@ -199,11 +200,17 @@ impl<'a, T> ImageViewMut<'a, T> {
     }
 }
 
-/// Depth in metres; a reading counts only when finite and positive.
+/// The farthest depth that counts as a reading, metres. No RGB-D camera measures beyond
+/// it; a larger value is a decoding or unit error, and letting it in would let one pixel
+/// (say `1e38`) overflow the sums of a step (the space frame's origin is a mean).
+pub const MAX_DEPTH_M: f32 = 100.0;
+
+/// Depth in metres; a reading counts only when finite, positive and at most
+/// [`MAX_DEPTH_M`].
 #[must_use]
 #[inline]
 pub fn valid_depth(z: f32) -> Option<f32> {
-    if z.is_finite() && z > 0.0 {
+    if z.is_finite() && z > 0.0 && z <= MAX_DEPTH_M {
         Some(z)
     } else {
         None
@@ -242,7 +249,8 @@ mod tests {
     #[test]
     fn depth_validity() {
         assert_eq!(valid_depth(0.5), Some(0.5));
-        for z in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        assert_eq!(valid_depth(MAX_DEPTH_M), Some(MAX_DEPTH_M));
+        for z in [0.0, -1.0, f32::NAN, f32::INFINITY, 1e38, MAX_DEPTH_M * 1.01] {
             assert_eq!(valid_depth(z), None);
         }
     }

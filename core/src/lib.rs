@@ -20,7 +20,12 @@ pub mod rng;
 pub mod se3;
 pub mod split;
 pub mod synth;
+// Core's tests use the host's `Vec`-backed workspace, compiled from its one source; the
+// alias lets that file's `riseg_core::` paths resolve here.
 #[cfg(test)]
+extern crate self as riseg_core;
+#[cfg(test)]
+#[path = "../../host/src/rig/workspace.rs"]
 mod test_workspace;
 
 pub use camera::Intrinsics;

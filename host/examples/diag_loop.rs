@@ -15,7 +15,8 @@ use std::{collections::BTreeMap, rc::Rc};
 use riseg::{
     eval::ceiling::{CeilingParams, MotionCeiling},
     eval::metrics::image_metrics,
-    flow::{DisFlow, Flow, FlowError, FlowEstimator, FlowParams, RgbView},
+    flow::{DisFlow, FlowError, FlowEstimator, FlowParams},
+    io::image::FlowImage,
     io::image::{DepthImage, Gray16Image},
     io::scene::ObjectPose,
     rig::camera::{Camera, CameraError, CameraFrame},
@@ -67,7 +68,11 @@ struct MaybeExact {
 }
 
 impl FlowEstimator for MaybeExact {
-    fn estimate(&self, first: RgbView<'_>, second: RgbView<'_>) -> Result<Flow, FlowError> {
+    fn estimate(
+        &self,
+        first: riseg_core::ImageView<'_, [u8; 3]>,
+        second: riseg_core::ImageView<'_, [u8; 3]>,
+    ) -> Result<FlowImage, FlowError> {
         if !self.exact {
             return self.dis.estimate(first, second);
         }
@@ -75,17 +80,16 @@ impl FlowEstimator for MaybeExact {
         let [.., (labels, depth, before), (_, _, after)] = taken.as_slice() else {
             panic!("two captures");
         };
-        Ok(Flow::from_middlebury(
-            ground_truth_flow(
-                &self.intrinsics,
-                &self.world_from_camera,
-                labels,
-                depth,
-                before,
-                after,
-            )
-            .expect("exact flow"),
-        ))
+        Ok(ground_truth_flow(
+            &self.intrinsics,
+            &self.world_from_camera,
+            labels,
+            depth,
+            before,
+            after,
+        )
+        .expect("exact flow")
+        .with_unknown_as_nan())
     }
 }
 
@@ -148,7 +152,7 @@ fn one(
         let (w, h) = f.frame.size();
         let cf = f
             .frame
-            .ceiling_frame(&f.observation.static_seg.labels)
+            .ceiling_frame(f.observation.static_seg.labels.as_slice())
             .ok_or("ceil")?;
         let cmask = ceiling.next_frame(&cf).map_err(|e| e.to_string())?;
         let cm = image_metrics(&truth, &cmask, w, h).map_err(|e| e.to_string())?;
@@ -180,7 +184,7 @@ fn one(
                     &poses,
                 )
                 .map_err(|e| e.to_string())?;
-                let exact = riseg::flow::Flow::from_middlebury(exact);
+                let exact = exact.with_unknown_as_nan();
                 let mut err: BTreeMap<u16, (f64, u32, u32, [f32; 4])> = BTreeMap::new();
                 for (i, &l) in prev_truth.iter().enumerate() {
                     if l == 0 || pf.depth_m.as_slice()[i] <= 0.0 {
@@ -343,7 +347,7 @@ fn one(
                 }
             }
         }
-        for (s, h) in histogram(&f.observation.static_seg.labels, &truth) {
+        for (s, h) in histogram(f.observation.static_seg.labels.as_slice(), &truth) {
             println!("   static {s}: {h:?}");
         }
         for (s, h) in histogram(&f.observation.mask, &truth) {

@@ -7,7 +7,7 @@
 use std::{collections::BTreeMap, path::PathBuf};
 
 use riseg::{
-    flow::{DisFlow, Flow, FlowParams},
+    flow::{DisFlow, FlowParams},
     io::scene::Scene,
     rig::camera::SceneReplay,
     rig::tracker::{GivenInputs, Tracker},
@@ -30,7 +30,7 @@ fn main() -> anyhow::Result<()> {
         let truth = frame.truth.clone().expect("labels");
         let (w, _) = frame.size();
         let flow = match (&scene.flow, t) {
-            (Some(flows), 1..) if exact => Some(Flow::from_middlebury(flows[t - 1].clone())),
+            (Some(flows), 1..) if exact => Some(flows[t - 1].clone().with_unknown_as_nan()),
             _ => None,
         };
         let prev_truth = tracker.last_frame().and_then(|f| f.truth.clone());
@@ -49,7 +49,7 @@ fn main() -> anyhow::Result<()> {
         };
         println!(
             "== frame {t}: static segments {}, mask segments {}",
-            distinct(&obs.static_seg.labels),
+            distinct(obs.static_seg.labels.as_slice()),
             distinct(&obs.mask)
         );
         let Some(step) = &obs.step else { continue };

@@ -20,10 +20,10 @@
 
 use anyhow::{Context as _, Result};
 use clap::Parser;
-use riseg::flow::{DisFlow, Flow, FlowEstimator as _, FlowParams, RgbView};
-use riseg::io::{
-    image::{read_flo, write_flo},
-    write_atomic,
+use riseg::flow::{DisFlow, FlowEstimator as _, FlowParams};
+use riseg::io::image::{
+    FlowImage, Gray8Image, RgbImage, read_flo, read_gray8, read_rgb8, write_flo, write_gray8,
+    write_rgb8,
 };
 use riseg::testkit::flow::FlowScene;
 use std::path::{Path, PathBuf};
@@ -57,15 +57,15 @@ struct Args {
     kind: String,
 }
 
-/// One pair to write: both images (8-bit RGB, row-major), the true flow, the moving mask.
+/// One pair to write: both images, the true flow, the moving mask (255 moving, 0 not).
 struct Written {
-    first: Vec<u8>,
-    second: Vec<u8>,
-    flow: Flow,
-    moving: Vec<u8>,
+    first: RgbImage,
+    second: RgbImage,
+    flow: FlowImage,
+    moving: Gray8Image,
 }
 
-fn textured_pair(w: usize, h: usize, seed: u64) -> Written {
+fn textured_pair(w: usize, h: usize, seed: u64) -> Result<Written> {
     let p = FlowScene::random_objects(w, h, seed).render();
     let moving = p
         .labels
@@ -79,12 +79,13 @@ fn textured_pair(w: usize, h: usize, seed: u64) -> Written {
             }
         })
         .collect();
-    Written {
+    let moving = Gray8Image::from_vec(w, h, moving)?;
+    Ok(Written {
         first: p.first,
         second: p.second,
         flow: p.flow,
         moving,
-    }
+    })
 }
 
 /// Frames 0 and 1 of the simulated scene `seed` (one scripted push), with the exact flow;
@@ -92,18 +93,18 @@ fn textured_pair(w: usize, h: usize, seed: u64) -> Written {
 fn sim_pair(seed: u64) -> Result<Written> {
     let g = riseg::cli::generate::generate_scene(seed, riseg::sim::Layout::Loose, 1)?;
     let s = &g.scene;
-    let (w, h) = (s.camera.width as usize, s.camera.height as usize);
-    let flow_image = s
+    let (w, h) = (s.camera.width, s.camera.height);
+    let flow = s
         .flow
         .as_ref()
         .and_then(|f| f.first())
-        .context("the generated scene has no flow")?;
+        .context("the generated scene has no flow")?
+        .clone();
     let labels = s
         .labels
         .as_ref()
         .and_then(|l| l.first())
         .context("the generated scene has no labels")?;
-    let flow = Flow::new(w, h, flow_image.as_slice().to_vec())?;
     let moving = labels
         .as_slice()
         .iter()
@@ -117,7 +118,8 @@ fn sim_pair(seed: u64) -> Result<Written> {
             }
         })
         .collect();
-    let rgb = |t: usize| s.rgb.get(t).map(|i| i.as_slice().as_flattened().to_vec());
+    let moving = Gray8Image::from_vec(w, h, moving)?;
+    let rgb = |t: usize| s.rgb.get(t).cloned();
     Ok(Written {
         first: rgb(0).context("frame 0")?,
         second: rgb(1).context("frame 1")?,
@@ -126,56 +128,24 @@ fn sim_pair(seed: u64) -> Result<Written> {
     })
 }
 
-fn write_png(path: &Path, width: usize, height: usize, data: Vec<u8>, rgb: bool) -> Result<()> {
-    let (w, h) = (u32::try_from(width)?, u32::try_from(height)?);
-    let mut bytes = Vec::new();
-    let mut cursor = std::io::Cursor::new(&mut bytes);
-    if rgb {
-        image::RgbImage::from_raw(w, h, data)
-            .context("RGB buffer size")?
-            .write_to(&mut cursor, image::ImageFormat::Png)?;
-    } else {
-        image::GrayImage::from_raw(w, h, data)
-            .context("gray buffer size")?
-            .write_to(&mut cursor, image::ImageFormat::Png)?;
-    }
-    write_atomic(path, &bytes).with_context(|| format!("writing {}", path.display()))
-}
-
 struct Pair {
     name: String,
-    first: image::RgbImage,
-    second: image::RgbImage,
-    truth: Flow,
+    first: RgbImage,
+    second: RgbImage,
+    truth: FlowImage,
     moving: Vec<bool>,
 }
 
 fn load(dir: &Path, name: &str) -> Result<Pair> {
-    let rgb = |suffix: &str| -> Result<image::RgbImage> {
-        let p = dir.join(format!("{name}_{suffix}.png"));
-        Ok(image::open(&p)
-            .with_context(|| format!("reading {}", p.display()))?
-            .to_rgb8())
-    };
-    let mask_path = dir.join(format!("{name}_mask.png"));
-    let mask = image::open(&mask_path)
-        .with_context(|| format!("reading {}", mask_path.display()))?
-        .to_luma8();
+    let rgb = |suffix: &str| read_rgb8(&dir.join(format!("{name}_{suffix}.png")));
+    let mask = read_gray8(&dir.join(format!("{name}_mask.png")))?;
     Ok(Pair {
         name: name.to_owned(),
         first: rgb("a")?,
         second: rgb("b")?,
-        truth: Flow::from_image(read_flo(&dir.join(format!("{name}_gt.flo")))?),
-        moving: mask.as_raw().iter().map(|&v| v > 127).collect(),
+        truth: read_flo(&dir.join(format!("{name}_gt.flo")))?,
+        moving: mask.as_slice().iter().map(|&v| v > 127).collect(),
     })
-}
-
-fn view(img: &image::RgbImage) -> Result<RgbView<'_>> {
-    Ok(RgbView::new(
-        img.width() as usize,
-        img.height() as usize,
-        img.as_raw(),
-    )?)
 }
 
 fn main() -> Result<()> {
@@ -188,30 +158,14 @@ fn main() -> Result<()> {
         let name = format!("pair_{i:02}");
         let seed = args.seed + i as u64;
         let p = match args.kind.as_str() {
-            "textured" => textured_pair(w, h, seed),
+            "textured" => textured_pair(w, h, seed)?,
             "sim" => sim_pair(seed)?,
             other => anyhow::bail!("unknown --kind {other:?} (textured or sim)"),
         };
-        let moving = p.moving;
-        write_png(&args.dir.join(format!("{name}_a.png")), w, h, p.first, true)?;
-        write_png(
-            &args.dir.join(format!("{name}_b.png")),
-            w,
-            h,
-            p.second,
-            true,
-        )?;
-        write_png(
-            &args.dir.join(format!("{name}_mask.png")),
-            w,
-            h,
-            moving,
-            false,
-        )?;
-        write_flo(
-            &args.dir.join(format!("{name}_gt.flo")),
-            &p.flow.to_image()?,
-        )?;
+        write_rgb8(&args.dir.join(format!("{name}_a.png")), &p.first)?;
+        write_rgb8(&args.dir.join(format!("{name}_b.png")), &p.second)?;
+        write_gray8(&args.dir.join(format!("{name}_mask.png")), &p.moving)?;
+        write_flo(&args.dir.join(format!("{name}_gt.flo")), &p.flow)?;
         pairs.push(load(&args.dir, &name)?);
     }
     for preset in &args.presets {
@@ -220,7 +174,7 @@ fn main() -> Result<()> {
         let est = DisFlow::new(params)?.with_threads(1)?;
         let (mut obj, mut all, mut ms) = (0.0, 0.0, 0.0);
         for p in &pairs {
-            let (a, b) = (view(&p.first)?, view(&p.second)?);
+            let (a, b) = (p.first.view(), p.second.view());
             let mut flow = est.estimate(a, b)?;
             let mut times = Vec::with_capacity(args.runs);
             for _ in 0..args.runs.max(1) {

@@ -29,10 +29,10 @@ pub fn label_colour(label: u16) -> [u8; 3] {
 /// dimmed. `labels` must hold one label per pixel; missing labels count as background.
 #[must_use]
 pub fn overlay_labels(rgb: &RgbImage, labels: &[u16]) -> RgbImage {
-    let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+    let (w, h) = (rgb.width(), rgb.height());
     let label = |x: usize, y: usize| labels.get(y * w + x).copied().unwrap_or(0);
     RgbImage::from_fn(rgb.width(), rgb.height(), |x, y| {
-        let (x, y) = (x as usize, y as usize);
+        let (x, y) = (x, y);
         let c = rgb.as_slice().get(y * w + x).copied().unwrap_or_default();
         let l = label(x, y);
         if l == 0 {
@@ -55,13 +55,13 @@ pub fn overlay_labels(rgb: &RgbImage, labels: &[u16]) -> RgbImage {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Clip {
     /// First column.
-    pub x0: u32,
+    pub x0: usize,
     /// First row.
-    pub y0: u32,
+    pub y0: usize,
     /// One past the last column.
-    pub x1: u32,
+    pub x1: usize,
     /// One past the last row.
-    pub y1: u32,
+    pub y1: usize,
 }
 
 impl Clip {
@@ -85,7 +85,7 @@ pub fn put(img: &mut RgbImage, clip: Clip, x: f32, y: f32, colour: [u8; 3]) {
         && px < clip.x1.min(img.width()) as f32
         && py < clip.y1.min(img.height()) as f32;
     if inside {
-        let index = py as usize * img.width() as usize + px as usize;
+        let index = py as usize * img.width() + px as usize;
         if let Some(p) = img.as_mut_slice().get_mut(index) {
             *p = colour;
         }

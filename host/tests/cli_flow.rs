@@ -1,8 +1,7 @@
 //! `riseg flow` end to end: a generated pair in, a .flo and a colour-wheel PNG out, and
 //! the errors for bad input name the file.
 
-use riseg::flow::Flow;
-use riseg::io::image::read_flo;
+use riseg::io::image::{RgbImage, read_flo, write_rgb8};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -12,11 +11,8 @@ fn dir(name: &str) -> PathBuf {
     d
 }
 
-fn save(path: &Path, w: usize, h: usize, rgb: Vec<u8>) {
-    image::RgbImage::from_raw(w as u32, h as u32, rgb)
-        .expect("buffer fits the size")
-        .save(path)
-        .expect("PNG written");
+fn save(path: &Path, rgb: &RgbImage) {
+    write_rgb8(path, rgb).expect("PNG written");
 }
 
 fn riseg(args: &[&Path]) -> std::process::Output {
@@ -32,12 +28,12 @@ fn writes_flo_and_viz() {
     let d = dir("ok");
     let pair = riseg::testkit::flow::translated(160, 120, 9, [2.5, -1.5]);
     let (a, b) = (d.join("a.png"), d.join("b.png"));
-    save(&a, 160, 120, pair.first.clone());
-    save(&b, 160, 120, pair.second.clone());
+    save(&a, &pair.first);
+    save(&b, &pair.second);
     let (out, viz) = (d.join("out.flo"), d.join("viz.png"));
     let o = riseg(&[&a, &b, Path::new("-o"), &out, Path::new("--viz"), &viz]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let flow = Flow::from_image(read_flo(&out).unwrap());
+    let flow = read_flo(&out).unwrap();
     assert_eq!((flow.width(), flow.height()), (160, 120));
     let epe = flow.mean_epe(&pair.flow, Some(&pair.interior)).unwrap();
     assert!(epe < 0.5, "EPE {epe}");
@@ -51,9 +47,12 @@ fn bad_input_is_an_error_naming_the_file() {
     let d = dir("bad");
     let pair = riseg::testkit::flow::translated(64, 48, 2, [1.0, 0.0]);
     let a = d.join("a.png");
-    save(&a, 64, 48, pair.first.clone());
+    save(&a, &pair.first);
     let small = d.join("small.png");
-    save(&small, 32, 48, pair.first[..3 * 32 * 48].to_vec());
+    save(
+        &small,
+        &RgbImage::from_fn(32, 48, |x, y| pair.first.as_slice()[y * 64 + x]),
+    );
     let corrupt = d.join("corrupt.png");
     std::fs::write(&corrupt, b"\x89PNG\r\n\x1a\nnot really a png").unwrap();
     let missing = d.join("missing.png");

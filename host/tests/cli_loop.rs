@@ -9,6 +9,11 @@ fn riseg() -> Command {
 #[test]
 fn the_default_command_is_the_demo_and_it_writes_pictures_and_a_report() {
     let dir = tempfile::tempdir().expect("temp dir");
+    // Left by an earlier, longer run: replaced (removed); the user's own file stays.
+    let earlier = dir.path().join("riseg-demo");
+    std::fs::create_dir_all(&earlier).expect("demo folder");
+    std::fs::write(earlier.join("frame_9.png"), b"stale").expect("stale frame");
+    std::fs::write(earlier.join("notes.txt"), b"mine").expect("user file");
     let out = riseg().current_dir(dir.path()).output().expect("run riseg");
     assert!(
         out.status.success(),
@@ -51,10 +56,15 @@ fn the_default_command_is_the_demo_and_it_writes_pictures_and_a_report() {
     for [lo, mid, hi] in spread {
         assert!(lo <= mid && mid <= hi && hi <= 100.0, "{report}");
     }
-    for p in pictures {
+    for p in &pictures {
         let img = image::open(demo.join(p)).expect("picture").to_rgb8();
         assert_eq!(img.dimensions(), (1280, 960), "{p}");
     }
+    assert!(!demo.join("frame_9.png").exists(), "a stale frame stayed");
+    assert_eq!(
+        std::fs::read(demo.join("notes.txt")).expect("notes"),
+        b"mine"
+    );
 }
 
 #[test]

@@ -19,7 +19,7 @@ use std::{
 
 use riseg::{
     cli::run::{InputDirs, replay_scene},
-    flow::{DisFlow, Flow, FlowParams, UNKNOWN_FLOW_MIN_PX},
+    flow::{DisFlow, FlowParams, UNKNOWN_FLOW_MIN_PX},
     io::image::{FlowImage, Gray8Image, Gray16Image},
     io::scene::{Scene, frame_file},
     rig::tracker::{GivenInputs, TrackError, Tracker},
@@ -108,7 +108,7 @@ fn tracker() -> Tracker<ClassicalSegmenter, DisFlow> {
 }
 
 /// The in-memory replay of the scene with the built-in stages and `flow` given for frame 1.
-fn replay_with_flow(scene: &Scene, flow: Flow) -> Vec<Vec<u16>> {
+fn replay_with_flow(scene: &Scene, flow: FlowImage) -> Vec<Vec<u16>> {
     let given = vec![
         GivenInputs::default(),
         GivenInputs {
@@ -168,10 +168,7 @@ fn flow_dir_at_the_dataset_uses_its_exact_flow() {
     let scene = scene();
     let exact = scene.flow.as_ref().unwrap()[0].clone();
     let masks = written_masks(&pred, scene.frames());
-    assert_eq!(
-        masks,
-        replay_with_flow(&scene, Flow::from_middlebury(exact))
-    );
+    assert_eq!(masks, replay_with_flow(&scene, exact.with_unknown_as_nan()));
 }
 
 #[test]
@@ -192,9 +189,9 @@ fn a_zero_flow_dir_gives_the_zero_flow_masks_not_the_exact_ones() {
     );
 
     let masks = written_masks(&pred, scene.frames());
-    assert_eq!(masks, replay_with_flow(&scene, Flow::from_middlebury(zero)));
+    assert_eq!(masks, replay_with_flow(&scene, zero.with_unknown_as_nan()));
     let exact = scene.flow.as_ref().unwrap()[0].clone();
-    let with_exact = replay_with_flow(&scene, Flow::from_middlebury(exact));
+    let with_exact = replay_with_flow(&scene, exact.with_unknown_as_nan());
     assert_eq!(masks[0], with_exact[0], "frame 0 has no flow");
     assert_ne!(masks[1], with_exact[1], "the flow file made no difference");
 }
@@ -253,27 +250,27 @@ fn heatmaps_are_read_when_present_and_derived_from_the_labels_otherwise() {
     assert_eq!(given.len(), 2);
     assert!(given.iter().all(|g| g.flow.is_none()));
     let frame0 = given[0].static_seg.as_ref().unwrap();
-    assert_eq!(frame0.labels, scene.labels.as_ref().unwrap()[0].as_slice());
-    assert_eq!(frame0.heatmap, heat.as_slice());
+    assert_eq!(frame0.labels, scene.labels.as_ref().unwrap()[0]);
+    assert_eq!(frame0.heatmap, heat);
     let frame1 = given[1].static_seg.as_ref().unwrap();
     let renumbered: Vec<u16> = sparse
         .as_slice()
         .iter()
         .map(|&l| [0, 0, 0, 1, 0, 0, 0, 2][usize::from(l)])
         .collect();
-    assert_eq!(frame1.labels, renumbered);
+    assert_eq!(frame1.labels.as_slice(), renumbered.as_slice());
     let derived: Vec<u8> = renumbered
         .iter()
         .map(|&l| if l == 0 { 0 } else { HEAT_CERTAIN })
         .collect();
-    assert_eq!(frame1.heatmap, derived);
+    assert_eq!(frame1.heatmap.as_slice(), derived.as_slice());
 }
 
 #[test]
 fn the_tracker_refuses_given_inputs_that_do_not_fit() {
     let scene = scene();
-    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
-    let flow = |w, h| Flow::new(w, h, vec![[0.0; 2]; w * h]).unwrap();
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let flow = |w, h| FlowImage::from_vec(w, h, vec![[0.0; 2]; w * h]).unwrap();
     let first = GivenInputs {
         flow: Some(flow(w, h)),
         ..GivenInputs::default()
@@ -415,7 +412,7 @@ fn corrupt_flow_and_label_files_are_named() {
 }
 
 /// riseg-core takes nothing from unknown flow, whether it is marked NaN (as
-/// `Flow::from_middlebury` does) or left as Middlebury's 1e10: both give one mask.
+/// `FlowImage::with_unknown_as_nan` does) or left as Middlebury's 1e10: both give one mask.
 #[test]
 fn unknown_flow_as_nan_or_as_1e10_gives_the_same_mask() {
     let step = SyntheticStep::touching_boxes(640, 480).unwrap();
@@ -432,7 +429,9 @@ fn unknown_flow_as_nan_or_as_1e10_gives_the_same_mask() {
             .collect()
     };
     let raw = with([10.0 * UNKNOWN_FLOW_MIN_PX, -10.0 * UNKNOWN_FLOW_MIN_PX]);
-    let nan = Flow::from_middlebury(FlowImage::from_vec(w as u32, h as u32, raw.clone()).unwrap());
+    let nan = FlowImage::from_vec(w, h, raw.clone())
+        .unwrap()
+        .with_unknown_as_nan();
     assert!(
         nan.as_slice()
             .iter()

@@ -213,7 +213,7 @@ fn an_8_bit_or_corrupt_prediction_is_an_error_naming_the_file() {
         "{stderr}"
     );
     assert!(
-        stderr.contains("must be a 16-bit greyscale PNG, this one is L8"),
+        stderr.contains("expected 16-bit greyscale PNG, found 8-bit greyscale"),
         "{stderr}"
     );
 
@@ -222,12 +222,12 @@ fn an_8_bit_or_corrupt_prediction_is_an_error_naming_the_file() {
     std::fs::write(&corrupt, b"\x89PNG\r\n\x1a\nnot really").unwrap();
     let err = eval::evaluate(&eval::find_frame_pairs(&data, &pred).unwrap(), || {}).unwrap_err();
     assert!(
-        matches!(&err, EvalError::Decode { path, .. } if *path == corrupt),
+        matches!(&err, EvalError::Image(e) if e.path == corrupt),
         "{err}"
     );
     let stderr = failing_eval(&data, &pred);
     assert!(stderr.contains(&corrupt.display().to_string()), "{stderr}");
-    assert!(stderr.contains("not a readable PNG"), "{stderr}");
+    assert!(stderr.contains("corrupt or unsupported PNG"), "{stderr}");
 }
 
 #[test]

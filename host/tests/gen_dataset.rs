@@ -263,7 +263,7 @@ fn bilinear(img: &RgbImage, x: f32, y: f32) -> Option<[f32; 3]> {
     if x0 < 0.0 || y0 < 0.0 {
         return None;
     }
-    let (ix, iy) = (x0 as u32, y0 as u32);
+    let (ix, iy) = (x0 as usize, y0 as usize);
     let (fx, fy) = (x - x0, y - y0);
     let p = |dx, dy| img.get(ix + dx, iy + dy).map(|c| c.map(f32::from));
     let (a, b, c, d) = (p(0, 0)?, p(1, 0)?, p(0, 1)?, p(1, 1)?);
@@ -335,7 +335,7 @@ fn warping_back_by_ground_truth_flow_reproduces_the_previous_frame() {
                     let (tx, ty) = (x as f32 + dx, y as f32 + dy);
                     // Same pixel set for both errors: the point is still visible at t+1.
                     let visible = labels[t + 1]
-                        .get(tx.round() as u32, ty.round() as u32)
+                        .get(tx.round() as usize, ty.round() as usize)
                         .is_some_and(|&l| l == label);
                     let Some(warped) = bilinear(next, tx, ty).filter(|_| visible) else {
                         continue;

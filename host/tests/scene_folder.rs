@@ -21,8 +21,8 @@ use riseg::{
 };
 use riseg_core::Pose;
 
-const W: u32 = 8;
-const H: u32 = 6;
+const W: usize = 8;
+const H: usize = 6;
 
 /// A valid 3-frame scene (2 pushes) with labels, flow and the poses of two objects.
 fn small_scene() -> Scene {
@@ -41,7 +41,7 @@ fn small_scene() -> Scene {
             .map(|t| RgbImage::from_fn(W, H, |x, y| [x as u8 * 20, y as u8 * 30, t as u8]))
             .collect(),
         depth: (0..frames)
-            .map(|t| Gray16Image::from_fn(W, H, |x, _| if x == 0 { 0 } else { 600 + t }))
+            .map(|t| Gray16Image::from_fn(W, H, |x, _| if x == 0 { 0 } else { 600 + t as u16 }))
             .collect(),
         labels: Some(
             (0..frames)
@@ -272,7 +272,7 @@ fn every_bad_folder_is_an_error_naming_the_file() {
         &root,
         "depth_8bit",
         |d| {
-            image::GrayImage::new(W, H)
+            image::GrayImage::new(W as u32, H as u32)
                 .save(d.join("depth/000000.png"))
                 .unwrap()
         },
@@ -424,7 +424,7 @@ fn every_bad_folder_is_an_error_naming_the_file() {
         (
             "poses_field",
             r#"{"frame": []}"#.to_owned(),
-            "missing field `frames`",
+            "unknown field `frame`, expected `frames`",
         ),
         (
             "poses_frames",

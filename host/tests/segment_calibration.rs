@@ -74,7 +74,7 @@ fn run_scene(seed: u64) -> SceneResult {
     let mut sim = SimScene::new(seed).expect("simulated scene");
     let touching: HashSet<(u16, u16)> = sim.touching_pairs(TOUCH_GAP_M).into_iter().collect();
     let frame = sim.render();
-    let (w, h) = (frame.rgb.width() as usize, frame.rgb.height() as usize);
+    let (w, h) = (frame.rgb.width(), frame.rgb.height());
     let gt = frame.labels.as_slice();
     let depth_m = frame.depth_m.as_slice();
     let rgbd = RgbdFrame::new(w, h, frame.rgb.as_slice(), depth_m).expect("frame");
@@ -83,7 +83,7 @@ fn run_scene(seed: u64) -> SceneResult {
         .segment_detailed(&rgbd, &frame.intrinsics)
         .unwrap_or_else(|e| panic!("seed {seed}: {e}"))
         .segmentation;
-    let (pred, heat) = (&seg.labels, &seg.heatmap);
+    let (pred, heat) = (seg.labels.as_slice(), seg.heatmap.as_slice());
 
     // Merged contact pixels and their heat.
     let (mut merged_contact_px, mut in_band_px) = (0, 0);

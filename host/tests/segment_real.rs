@@ -60,7 +60,7 @@ fn check_frame(name: &str, rgb: &Path, depth: &Path, k: &Intrinsics) -> Option<S
     let out = seg
         .segment_detailed(&frame, k)
         .unwrap_or_else(|e| panic!("{name}: {e}"));
-    let labels = &out.segmentation.labels;
+    let labels = out.segmentation.labels.as_slice();
 
     let (mut inliers, mut inliers_background) = (0usize, 0usize);
     for (i, &z) in depth_m.iter().enumerate() {

@@ -27,8 +27,8 @@ use riseg::{
     draw::{label_colour, overlay_labels},
     eval::metrics::image_metrics,
     flow::DisFlow,
-    flow::{Flow, FlowEstimator as _, RgbView, viz::flow_to_rgb},
-    io::{files::MemoryFiles, scene::Scene},
+    flow::{FlowEstimator as _, viz::flow_to_rgb},
+    io::{files::MemoryFiles, image::FlowImage, scene::Scene},
     rig::{
         camera::{CameraFrame, SceneReplay},
         episode::find_action_on,
@@ -71,7 +71,7 @@ pub(crate) struct Replay {
     /// The frame `segment`, `flow` and `update` work on next.
     next: usize,
     pending_seg: Option<Segmentation>,
-    pending_flow: Option<Flow>,
+    pending_flow: Option<FlowImage>,
     /// Frame `next − 1` and what the tracker made of it.
     last: Option<(CameraFrame, Observation)>,
     action: Option<ActionReport>,
@@ -96,11 +96,11 @@ impl Replay {
     }
 
     pub(crate) fn width(&self) -> usize {
-        self.scene.camera.width as usize
+        self.scene.camera.width
     }
 
     pub(crate) fn height(&self) -> usize {
-        self.scene.camera.height as usize
+        self.scene.camera.height
     }
 
     pub(crate) fn frames(&self) -> usize {
@@ -162,14 +162,12 @@ impl Replay {
         let Some(prev) = t.checked_sub(1) else {
             return Err("flow of frame 0: the first frame has no previous frame".into());
         };
-        let (w, h) = (self.width(), self.height());
-        let rgb = |t: usize| -> Result<RgbView<'_>, String> {
-            let image = self
-                .scene
+        let rgb = |t: usize| {
+            self.scene
                 .rgb
                 .get(t)
-                .ok_or_else(|| format!("frame {t}: the scene has {} frames", self.frames()))?;
-            RgbView::new(w, h, image.as_slice().as_flattened()).map_err(|e| e.to_string())
+                .map(|image| image.view())
+                .ok_or_else(|| format!("frame {t}: the scene has {} frames", self.frames()))
         };
         let flow = self
             .tracker
@@ -258,12 +256,12 @@ impl Replay {
 
     /// The static labels of the last observed frame.
     pub(crate) fn static_labels(&self) -> Result<&[u16], String> {
-        Ok(&self.observed()?.1.static_seg.labels)
+        Ok(self.observed()?.1.static_seg.labels.as_slice())
     }
 
     /// The static heatmap (0-255) of the last observed frame.
     pub(crate) fn heatmap(&self) -> Result<&[u8], String> {
-        Ok(&self.observed()?.1.static_seg.heatmap)
+        Ok(self.observed()?.1.static_seg.heatmap.as_slice())
     }
 
     /// RISeg's accumulated mask of the last observed frame.
@@ -405,8 +403,7 @@ impl Replay {
         let Some(step) = &self.observed()?.1.step else {
             return Ok(Vec::new());
         };
-        let rgb = flow_to_rgb(&step.flow, None);
-        Ok(rgba(rgb.as_chunks::<3>().0))
+        Ok(rgba(flow_to_rgb(&step.flow, None).as_slice()))
     }
 }
 
@@ -502,7 +499,10 @@ mod tests {
                 .observe(SceneReplay::frame(&scene, t).unwrap())
                 .unwrap();
             assert_eq!(replay.mask().unwrap(), observed.mask, "frame {t}");
-            assert_eq!(replay.static_labels().unwrap(), observed.static_seg.labels);
+            assert_eq!(
+                replay.static_labels().unwrap(),
+                observed.static_seg.labels.as_slice()
+            );
             let frames = replay.body_frames().unwrap();
             assert_eq!(frames.len() % BODY_FRAME_FLOATS, 0);
             assert_eq!(t > 0, !frames.is_empty(), "frame {t}: body frames");

@@ -28,12 +28,16 @@
 //! only objects the static segmentation already separated, does not. Per push index `t`,
 //! [`BenchReport::partial_push_share`] is the fraction of the pushes `t` made that did.
 //!
-//! Scenes run in parallel (rayon) and are merged in scene order: the tables are the same
-//! for a seed whatever the thread count; only the times vary.
+//! Scenes run in parallel on a fixed set of worker threads ([`run_bench`]; memory and
+//! threads stay flat in the number of scenes) and are merged in scene order: the tables
+//! are the same for a seed whatever the thread count; only the times vary.
 
-use std::collections::BTreeMap;
+use core::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::{
+    collections::BTreeMap,
+    sync::{Mutex, PoisonError},
+};
 
-use rayon::prelude::*;
 use riseg_core::{Config, Pose};
 use serde::{Deserialize, Serialize};
 
@@ -255,7 +259,7 @@ impl PushStart {
     fn of(f: &EpisodeFrame<'_>) -> Result<Self, String> {
         let frame = f
             .frame
-            .ceiling_frame(&f.observation.static_seg.labels)
+            .ceiling_frame(f.observation.static_seg.labels.as_slice())
             .ok_or_else(|| {
                 format!(
                     "frame {}: the camera gave no ground-truth labels or no object poses",
@@ -323,7 +327,7 @@ pub fn score_frame(f: &EpisodeFrame<'_>) -> Result<(ImageMetrics, ImageMetrics),
     let truth = f.frame.truth.as_ref().map_or(empty, |t| t.as_slice());
     let obs = f.observation;
     Ok((
-        image_metrics(truth, &obs.static_seg.labels, w, h)?,
+        image_metrics(truth, obs.static_seg.labels.as_slice(), w, h)?,
         image_metrics(truth, &obs.mask, w, h)?,
     ))
 }
@@ -340,7 +344,7 @@ fn score_ceiling(
 ) -> Result<ImageMetrics, String> {
     let frame = f
         .frame
-        .ceiling_frame(&f.observation.static_seg.labels)
+        .ceiling_frame(f.observation.static_seg.labels.as_slice())
         .ok_or("the camera gave no ground-truth labels or no object poses")?;
     let mask = ceiling.next_frame(&frame).map_err(|e| e.to_string())?;
     image_metrics(frame.truth, &mask, frame.width, frame.height).map_err(|e| e.to_string())
@@ -358,23 +362,56 @@ fn place_scene(seed: u64, layout: Layout) -> Result<(SimScene, u64), SimError> {
     placed.map(|found| (found.value, found.seed))
 }
 
-/// Runs every scene (in parallel) and builds the report; `on_scene` is called as each
-/// scene finishes (from worker threads).
+/// Runs every scene and builds the report; `on_scene` is called as each scene finishes
+/// (from worker threads).
+///
+/// Scenes run on as many plain worker threads as rayon's global pool has
+/// ([`rayon::current_num_threads`], so `RAYON_NUM_THREADS` applies), each taking the next
+/// scene when it finishes one: at most that many scenes are in memory at once, and the
+/// thread count does not grow with the number of scenes. (Scenes as rayon tasks would
+/// not bound this: a worker waiting for the renderer's or the flow's parallel work steals
+/// further scenes and nests them on its stack.) After a scene fails, no new scene starts.
 ///
 /// # Errors
-/// The first [`BenchError`] in scene order.
+/// The first [`BenchError`] in scene order among the scenes run.
 pub fn run_bench(
     cfg: &BenchConfig,
     on_scene: impl Fn(&SceneResult) + Sync,
 ) -> Result<(BenchReport, Vec<SceneResult>), BenchError> {
-    let results: Vec<SceneResult> = (0..cfg.scenes)
-        .into_par_iter()
-        .map(|i| {
-            let r = run_scene(cfg, i)?;
-            on_scene(&r);
-            Ok(r)
-        })
-        .collect::<Result<_, BenchError>>()?;
+    let workers = rayon::current_num_threads().clamp(1, cfg.scenes.max(1));
+    let next_scene = AtomicUsize::new(0);
+    let failed = AtomicBool::new(false);
+    let slots: Mutex<Vec<Option<Result<SceneResult, BenchError>>>> =
+        Mutex::new((0..cfg.scenes).map(|_| None).collect());
+    std::thread::scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|| {
+                loop {
+                    let scene = next_scene.fetch_add(1, Ordering::Relaxed);
+                    if scene >= cfg.scenes || failed.load(Ordering::Relaxed) {
+                        break;
+                    }
+                    let result = run_scene(cfg, scene);
+                    match &result {
+                        Ok(r) => on_scene(r),
+                        Err(_) => failed.store(true, Ordering::Relaxed),
+                    }
+                    let mut slots = slots.lock().unwrap_or_else(PoisonError::into_inner);
+                    if let Some(slot) = slots.get_mut(scene) {
+                        *slot = Some(result);
+                    }
+                }
+            });
+        }
+    });
+    let mut results = Vec::with_capacity(cfg.scenes);
+    for slot in slots.into_inner().unwrap_or_else(PoisonError::into_inner) {
+        match slot {
+            Some(Ok(r)) => results.push(r),
+            Some(Err(e)) => return Err(e),
+            None => {}
+        }
+    }
     Ok((report(&results), results))
 }
 
@@ -621,7 +658,7 @@ mod command {
     use std::path::PathBuf;
 
     use crate::cli::bench::{self, BenchConfig};
-    use crate::io::write_atomic;
+    use crate::io::{check_writable, write_atomic};
     use crate::rig::episode::Stop;
     use anyhow::Context as _;
     use clap::Args;
@@ -669,8 +706,8 @@ Example:
 
     #[derive(Debug, Args)]
     pub(in crate::cli) struct BenchArgs {
-        /// Number of scenes.
-        #[arg(long, default_value_t = 23)]
+        /// Number of scenes (1 to 10000).
+        #[arg(long, default_value_t = 23, value_parser = crate::cli::scene_count)]
         scenes: usize,
         /// Dataset seed (scene i uses the simulator seed `riseg gen` derives from it).
         #[arg(long, default_value_t = 1)]
@@ -697,6 +734,10 @@ Example:
 
     pub(in crate::cli) fn command(args: &BenchArgs) -> anyhow::Result<()> {
         let settings = args.config.load()?.settings();
+        if let Some(path) = &args.json {
+            // Before the run, not after it.
+            check_writable(path).with_context(|| format!("cannot write {}", path.display()))?;
+        }
         let cfg = BenchConfig {
             layout: args.layout.layout(),
             core: settings.core,
@@ -727,12 +768,19 @@ Example:
             bar.inc(1);
         })?;
         bar.finish_and_clear();
+        // The file first: a closed standard output must not lose it.
+        if let Some(path) = &args.json {
+            let mut json = serde_json::to_vec_pretty(&report).context("encoding the report")?;
+            json.push(b'\n');
+            write_atomic(path, &json).with_context(|| format!("writing {}", path.display()))?;
+            log::info!("wrote {}", path.display());
+        }
         let refused = results
             .iter()
             .filter(|r| matches!(r.stop, Stop::Refused(_)))
             .count();
-        println!(
-            "{} {} scenes, seed {}; pushes per scene: {}{}",
+        say!(
+            "{} {} scenes, seed {}; pushes per scene: {}{}\n",
             args.scenes,
             cfg.layout,
             args.seed,
@@ -746,7 +794,7 @@ Example:
             } else {
                 String::new()
             }
-        );
+        )?;
         if args.per_scene {
             for r in &results {
                 let frames: Vec<String> = r
@@ -775,23 +823,16 @@ Example:
                         )
                     })
                     .collect();
-                println!(
-                    "scene {:>3} (sim seed {:>20}): {}  [{:?}]",
+                say!(
+                    "scene {:>3} (sim seed {:>20}): {}  [{:?}]\n",
                     r.scene,
                     r.sim_seed,
                     frames.join(" | "),
                     r.stop
-                );
+                )?;
             }
         }
-        print!("{report}");
-        if let Some(path) = &args.json {
-            let mut json = serde_json::to_vec_pretty(&report).context("encoding the report")?;
-            json.push(b'\n');
-            write_atomic(path, &json).with_context(|| format!("writing {}", path.display()))?;
-            log::info!("wrote {}", path.display());
-        }
-        Ok(())
+        say!("{report}")
     }
 }
 

@@ -208,7 +208,7 @@ pub(in crate::cli) struct ConfigCmdArgs {
 
 pub(in crate::cli) fn command(args: &ConfigCmdArgs) -> anyhow::Result<()> {
     if args.print {
-        print!("{}", default_toml()?);
+        say!("{}", default_toml()?)?;
     }
     Ok(())
 }

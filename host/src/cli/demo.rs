@@ -133,6 +133,7 @@ pub fn run_demo(
     md.push_str(&bench_spread(&report, settings)?);
     let path = out.join("report.md");
     write_atomic(&path, md.as_bytes()).with_context(|| format!("writing {}", path.display()))?;
+    remove_stale_frames(out, report.frames.len())?;
     Ok(report)
 }
 
@@ -160,6 +161,30 @@ fn demo_frame(out: &Path, f: &EpisodeFrame<'_>) -> anyhow::Result<DemoFrame> {
     })
 }
 
+/// Removes the `frame_N.png` pictures with `N >= frames` that an earlier, longer demo run
+/// left in `out`, so the folder shows this run only. Other files are not touched.
+fn remove_stale_frames(out: &Path, frames: usize) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    let stale = |name: &str| {
+        name.strip_prefix("frame_")
+            .and_then(|n| n.strip_suffix(".png"))
+            .filter(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+            .and_then(|n| n.parse::<usize>().ok())
+            .is_some_and(|n| n >= frames)
+    };
+    let listing = std::fs::read_dir(out).with_context(|| format!("listing {}", out.display()))?;
+    for entry in listing {
+        let path = entry
+            .with_context(|| format!("listing {}", out.display()))?
+            .path();
+        if path.file_name().and_then(|n| n.to_str()).is_some_and(stale) {
+            std::fs::remove_file(&path)
+                .with_context(|| format!("removing the stale {}", path.display()))?;
+        }
+    }
+    Ok(())
+}
+
 const YELLOW: [u8; 3] = [255, 230, 0];
 const WHITE: [u8; 3] = [255, 255, 255];
 const GREY: [u8; 3] = [120, 120, 120];
@@ -169,7 +194,7 @@ const GREY: [u8; 3] = [120, 120, 120];
 pub fn panels(f: &EpisodeFrame<'_>) -> RgbImage {
     let (w, h) = f.frame.size();
     let obs: &Observation = f.observation;
-    let static_panel = overlay_labels(&f.frame.rgb, &obs.static_seg.labels);
+    let static_panel = overlay_labels(&f.frame.rgb, obs.static_seg.labels.as_slice());
     let mut riseg_panel = overlay_labels(&f.frame.rgb, &obs.mask);
     let clip = Clip::all(&riseg_panel);
     for c in f.action.certain() {
@@ -193,18 +218,11 @@ pub fn panels(f: &EpisodeFrame<'_>) -> RgbImage {
             line(&mut frames_panel, clip, px[0], px[2], colour, 1);
             dot(&mut frames_panel, clip, px[0], colour, 1);
         }
-        let rgb = flow_to_rgb(&step.flow, None);
-        flow_panel = RgbImage::from_fn(w as u32, h as u32, |x, y| {
-            let i = 3 * (y as usize * w + x as usize);
-            match rgb.get(i..i + 3) {
-                Some(&[r, g, b]) => [r, g, b],
-                _ => [0; 3],
-            }
-        });
+        flow_panel = flow_to_rgb(&step.flow, None);
     }
-    RgbImage::from_fn(2 * w as u32, 2 * h as u32, |x, y| {
-        let (col, row) = (x as usize / w, y as usize / h);
-        let (lx, ly) = (x % w as u32, y % h as u32);
+    RgbImage::from_fn(2 * w, 2 * h, |x, y| {
+        let (col, row) = (x / w, y / h);
+        let (lx, ly) = (x % w, y % h);
         let tile = match (col, row) {
             (0, 0) => &static_panel,
             (1, 0) => &riseg_panel,
@@ -484,17 +502,17 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
         })
         .with_context(|| format!("demo on simulated {layout} scene {seed}"))?;
         bar.finish_and_clear();
-        println!(
-            "riseg demo: simulated {layout} scene {}, {} pushes; {}.",
+        say!(
+            "riseg demo: simulated {layout} scene {}, {} pushes; {}.\n",
             report.seed,
             report.frames.len().saturating_sub(1),
             crate::cli::demo::stop_text(&report.stop)
-        );
-        print!("{}", crate::cli::demo::table(&report));
-        println!(
-            "pictures and report: {}",
+        )?;
+        say!("{}", crate::cli::demo::table(&report))?;
+        say!(
+            "pictures and report: {}\n",
             args.out.join("report.md").display()
-        );
+        )?;
         Ok(())
     }
 }

@@ -44,6 +44,7 @@ use serde::{Deserialize, Serialize};
 use crate::{
     eval::ceiling::{CeilingError, CeilingParams, MotionCeiling},
     eval::metrics::{self, ImageMetrics, MetricsError, MetricsRow, Prf, PushAverages},
+    io::image::{ImageIoError, read_gray16},
     io::scene::{LABEL_DIR, POSES_FILE, Scene, SceneError, frame_file_name, list_scenes},
     io::write_atomic,
     rig::camera::SceneReplay,
@@ -77,7 +78,7 @@ pub enum EvalError {
         scene: PathBuf,
     },
     /// A PNG in a `label/` folder is not named by a frame number.
-    #[error("{}: a label map must be named by its frame number, like 000000.png", path.display())]
+    #[error("{}: a label map must be named by its frame number in six digits, like 000000.png", path.display())]
     BadFrameName {
         /// The file.
         path: PathBuf,
@@ -88,22 +89,10 @@ pub enum EvalError {
         /// The prediction file that should exist.
         path: PathBuf,
     },
-    /// A label map is not a readable PNG.
-    #[error("{}: not a readable PNG", path.display())]
-    Decode {
-        /// The file.
-        path: PathBuf,
-        /// The decoder's error.
-        source: image::ImageError,
-    },
-    /// A label map is a PNG, but not 16-bit single-channel.
-    #[error("{}: a label map must be a 16-bit greyscale PNG, this one is {found}", path.display())]
-    NotSixteenBit {
-        /// The file.
-        path: PathBuf,
-        /// The colour type found, e.g. `L8` or `Rgb8`.
-        found: String,
-    },
+    /// A label map is missing, not a readable PNG, or not 16-bit greyscale (the message
+    /// names the file and the problem).
+    #[error(transparent)]
+    Image(#[from] ImageIoError),
     /// A prediction's size differs from its ground truth's.
     #[error(
         "{}: {width}x{height} labels, but the ground truth is {gt_width}x{gt_height}",
@@ -151,46 +140,6 @@ pub enum EvalError {
         /// Why.
         source: SegmentError,
     },
-}
-
-/// A decoded label map: row-major instance ids, 0 = background.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct LabelImage {
-    /// Width in pixels.
-    pub width: usize,
-    /// Height in pixels.
-    pub height: usize,
-    /// `width · height` labels, row by row.
-    pub labels: Vec<u16>,
-}
-
-/// Reads a 16-bit greyscale PNG label map.
-///
-/// # Errors
-/// [`EvalError::Io`] if the file cannot be opened, [`EvalError::Decode`] if it is not a
-/// valid PNG, [`EvalError::NotSixteenBit`] if its pixels are not 16-bit single-channel.
-pub fn read_label_png(path: &Path) -> Result<LabelImage, EvalError> {
-    let decoded = image::ImageReader::open(path)
-        .map_err(|source| EvalError::Io {
-            path: path.to_owned(),
-            source,
-        })?
-        .decode()
-        .map_err(|source| EvalError::Decode {
-            path: path.to_owned(),
-            source,
-        })?;
-    match decoded {
-        image::DynamicImage::ImageLuma16(buffer) => Ok(LabelImage {
-            width: buffer.width() as usize,
-            height: buffer.height() as usize,
-            labels: buffer.into_raw(),
-        }),
-        other => Err(EvalError::NotSixteenBit {
-            path: path.to_owned(),
-            found: format!("{:?}", other.color()),
-        }),
-    }
 }
 
 /// One ground-truth frame and the prediction to score against it.
@@ -243,7 +192,7 @@ pub fn find_frame_pairs(gt_root: &Path, pred_root: &Path) -> Result<Vec<FramePai
             let push = gt
                 .file_stem()
                 .and_then(|s| s.to_str())
-                .filter(|s| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit()))
+                .filter(|s| s.len() == 6 && s.bytes().all(|b| b.is_ascii_digit()))
                 .and_then(|s| s.parse::<u32>().ok())
                 .ok_or_else(|| EvalError::BadFrameName { path: gt.clone() })?;
             frames.push((push, gt));
@@ -286,22 +235,24 @@ fn list_dir(dir: &Path) -> Result<Vec<PathBuf>, EvalError> {
 /// Reads both label maps of `pair` and computes their metrics.
 ///
 /// # Errors
-/// Any error of [`read_label_png`] for either file; [`EvalError::SizeMismatch`] if the
+/// [`EvalError::Image`] if either file is not a 16-bit greyscale PNG
+/// ([`read_gray16`]); [`EvalError::SizeMismatch`] if the
 /// prediction's size differs from the ground truth's; [`EvalError::Metrics`] if the
 /// metrics refuse the pair.
 pub fn frame_metrics(pair: &FramePair) -> Result<ImageMetrics, EvalError> {
-    let gt = read_label_png(&pair.gt)?;
-    let pred = read_label_png(&pair.pred)?;
-    if (pred.width, pred.height) != (gt.width, gt.height) {
+    let gt = read_gray16(&pair.gt)?;
+    let pred = read_gray16(&pair.pred)?;
+    if pred.size() != gt.size() {
         return Err(EvalError::SizeMismatch {
             path: pair.pred.clone(),
-            width: pred.width,
-            height: pred.height,
-            gt_width: gt.width,
-            gt_height: gt.height,
+            width: pred.width(),
+            height: pred.height(),
+            gt_width: gt.width(),
+            gt_height: gt.height(),
         });
     }
-    metrics::image_metrics(&gt.labels, &pred.labels, gt.width, gt.height).map_err(|source| {
+    let (width, height) = gt.size();
+    metrics::image_metrics(gt.as_slice(), pred.as_slice(), width, height).map_err(|source| {
         EvalError::Metrics {
             path: pair.pred.clone(),
             source,
@@ -548,7 +499,7 @@ pub fn evaluate_ceiling(
                     frame: t,
                     source,
                 })?;
-            let Some(input) = frame.ceiling_frame(&static_seg.labels) else {
+            let Some(input) = frame.ceiling_frame(static_seg.labels.as_slice()) else {
                 return Err(EvalError::NoGroundTruth { scene: dir.clone() });
             };
             let mask = ceiling
@@ -646,6 +597,10 @@ Example:
     }
 
     pub(in crate::cli) fn command(args: &EvalArgs) -> anyhow::Result<()> {
+        if let Some(path) = &args.json {
+            crate::io::check_writable(path)
+                .with_context(|| format!("cannot write {}", path.display()))?;
+        }
         let pairs = eval::find_frame_pairs(&args.gt, &args.pred)?;
         let poses = eval::dataset_poses(&args.gt)?;
         // The ceiling scores every ground-truth frame once more (every scene has poses).
@@ -678,12 +633,12 @@ Example:
                 scene::POSES_FILE
             );
         }
-        print!("{report}");
+        // The file first: a closed standard output must not lose it.
         if let Some(path) = &args.json {
             report.write_json(path)?;
             log::info!("wrote {}", path.display());
         }
-        Ok(())
+        say!("{report}")
     }
 }
 

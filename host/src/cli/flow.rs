@@ -2,8 +2,8 @@
 
 use std::path::PathBuf;
 
-use crate::flow::{DisFlow, FlowEstimator as _, FlowParams, RgbView, viz::flow_to_rgb};
-use crate::io::image::{RgbImage, read_png_as_rgb8, write_flo, write_rgb8};
+use crate::flow::{DisFlow, FlowEstimator as _, FlowParams, viz::flow_to_rgb};
+use crate::io::image::{read_png_as_rgb8, write_flo, write_rgb8};
 use anyhow::{Context as _, bail};
 use clap::ValueEnum;
 
@@ -45,8 +45,8 @@ pub(super) struct FlowArgs {
     /// Speed/accuracy preset.
     #[arg(long, value_enum, default_value_t = Preset::Medium)]
     preset: Preset,
-    /// Worker threads; 0 uses every core.
-    #[arg(long, default_value_t = 0)]
+    /// Worker threads; 0 uses every core (at most 256).
+    #[arg(long, default_value_t = 0, value_parser = crate::cli::thread_count)]
     threads: usize,
     /// Settings file (TOML): its [flow] keys replace those of --preset (the other
     /// sections are checked, not used). See `riseg config --help`.
@@ -74,14 +74,6 @@ impl Preset {
     }
 }
 
-fn view(img: &RgbImage) -> anyhow::Result<RgbView<'_>> {
-    Ok(RgbView::new(
-        img.width() as usize,
-        img.height() as usize,
-        img.as_slice().as_flattened(),
-    )?)
-}
-
 pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
     let params = crate::cli::config::ConfigArg::from(args.config.clone())
         .load()?
@@ -101,7 +93,7 @@ pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
     }
     let estimator = DisFlow::new(params)?.with_threads(args.threads)?;
     let flow = estimator
-        .estimate(view(&first)?, view(&second)?)
+        .estimate(first.view(), second.view())
         .with_context(|| {
             format!(
                 "flow from {} to {}",
@@ -109,13 +101,9 @@ pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
                 args.second.display()
             )
         })?;
-    write_flo(&args.output, &flow.to_image()?)?;
+    write_flo(&args.output, &flow)?;
     if let Some(viz) = &args.viz {
-        let rgb = flow_to_rgb(&flow, None);
-        let pixels = rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-        let img = RgbImage::from_vec(first.width(), first.height(), pixels)
-            .context("colour-wheel image size")?;
-        write_rgb8(viz, &img)?;
+        write_rgb8(viz, &flow_to_rgb(&flow, None))?;
     }
     Ok(())
 }

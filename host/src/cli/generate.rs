@@ -255,7 +255,8 @@ pub fn scene_dir_name(index: usize) -> String {
 ///
 /// # Errors
 /// [`GenError::CreateDir`] if `out` cannot be created; [`SceneError::Exists`] (as
-/// [`GenError::Scene`]) if a scene folder is already there; simulation and write errors.
+/// [`GenError::Scene`]) if a scene folder or preview it would write is already there
+/// (checked before anything is written); simulation and write errors.
 pub fn write_dataset(
     out: &Path,
     scenes: usize,
@@ -265,6 +266,15 @@ pub fn write_dataset(
     mut on_scene: impl FnMut(usize, &GeneratedScene),
 ) -> Result<(), GenError> {
     let previews = out.join(PREVIEW_DIR);
+    // Every destination is checked before anything is written: gen never replaces a file.
+    for i in 0..scenes {
+        let name = scene_dir_name(i);
+        for path in [out.join(&name), previews.join(format!("{name}.png"))] {
+            if fs::symlink_metadata(&path).is_ok() {
+                return Err(SceneError::Exists { path }.into());
+            }
+        }
+    }
     fs::create_dir_all(&previews).map_err(|source| GenError::CreateDir {
         path: previews.clone(),
         source,
@@ -293,8 +303,8 @@ mod command {
 
     #[derive(Debug, Args)]
     pub(in crate::cli) struct GenArgs {
-        /// Number of scenes to make.
-        #[arg(long, default_value_t = 1)]
+        /// Number of scenes to make (1 to 10000).
+        #[arg(long, default_value_t = 1, value_parser = crate::cli::scene_count)]
         scenes: usize,
         /// Dataset seed; scene i is simulated from a seed derived from it and i.
         #[arg(long, default_value_t = 0)]
@@ -302,8 +312,8 @@ mod command {
         /// Output folder (created if missing).
         #[arg(long)]
         out: PathBuf,
-        /// Pushes per scene; each scene has pushes + 1 frames.
-        #[arg(long, default_value_t = 3)]
+        /// Pushes per scene (0 to 20); each scene has pushes + 1 frames.
+        #[arg(long, default_value_t = 3, value_parser = crate::cli::push_count)]
         pushes: usize,
         /// Scene family: loose, packed or mixed (described above).
         #[arg(long, value_enum, default_value_t = LayoutArg::Loose)]
@@ -335,11 +345,11 @@ mod command {
         })
         .with_context(|| format!("generating {scenes} {layout} scenes into {}", out.display()))?;
         bar.finish();
-        println!(
-            "wrote {scenes} {layout} scenes to {}; previews in {}",
+        say!(
+            "wrote {scenes} {layout} scenes to {}; previews in {}\n",
             out.display(),
             out.join(PREVIEW_DIR).display()
-        );
+        )?;
         Ok(())
     }
 }

@@ -1,4 +1,16 @@
 //! The `riseg` subcommands, one module each, and what only commands use.
+//!
+//! Exit codes: 0 success (also when standard output is closed early, e.g. `riseg eval ... |
+//! head`: what was cut is the reader's choice); 1 an error, printed to stderr as one line
+//! naming the file and the problem; 2 bad arguments (clap's usage message).
+
+/// `print!` that returns an error (naming standard output) instead of panicking when
+/// standard output is closed or full; `?` it.
+macro_rules! say {
+    ($($arg:tt)*) => {
+        $crate::cli::write_stdout(format_args!($($arg)*))
+    };
+}
 
 pub mod bench;
 pub mod config;
@@ -10,11 +22,21 @@ pub mod preview;
 pub mod run;
 mod segment;
 
-use std::process::ExitCode;
+use std::{
+    io::{self, Write as _},
+    process::ExitCode,
+};
+
+use anyhow::Context as _;
 
 use clap::{Parser, Subcommand, ValueEnum};
 
 use crate::sim::Layout;
+
+const EXIT_CODES: &str = "\
+Exit codes: 0 success (also when standard output is closed early, as by `| head`); \
+1 an error, printed on stderr as one line naming the file and the problem (nothing is \
+left half-written, no input is overwritten); 2 bad arguments.";
 
 /// RISeg: robot interactive object segmentation via body frame-invariant features.
 ///
@@ -22,7 +44,7 @@ use crate::sim::Layout;
 /// merges them; riseg makes a few 2 cm pushes, samples small body frames on the objects,
 /// groups them by their spatial twists and splits what moved differently.
 #[derive(Debug, Parser)]
-#[command(name = "riseg", version, about, long_about)]
+#[command(name = "riseg", version, about, long_about, after_help = EXIT_CODES)]
 struct Cli {
     /// More diagnostics on stderr: -v notes what runs, -vv adds debugging detail. Without
     /// it, RUST_LOG sets the level and modules (RUST_LOG=riseg=debug); warnings by default.
@@ -178,11 +200,60 @@ pub fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(error) if closed_stdout(&error) => ExitCode::SUCCESS,
         Err(error) => {
             eprintln!("error: {}", error_text(&error));
             ExitCode::FAILURE
         }
     }
+}
+
+/// Most scenes one `gen` or `bench` run makes: a bound on time and disk a typo cannot
+/// exceed (a scene is about 2 MB on disk).
+pub const MAX_SCENES: usize = 10_000;
+/// Most worker threads `--threads` starts.
+pub const MAX_THREADS: usize = 256;
+
+/// Parses `--scenes`: 1 to [`MAX_SCENES`].
+fn scene_count(text: &str) -> Result<usize, String> {
+    bounded(text, 1, MAX_SCENES)
+}
+
+/// Most pushes `gen` scripts per scene.
+pub const MAX_PUSHES: usize = 20;
+
+/// Parses `--pushes`: 0 to [`MAX_PUSHES`].
+fn push_count(text: &str) -> Result<usize, String> {
+    bounded(text, 0, MAX_PUSHES)
+}
+
+/// Parses `--threads`: 0 (every core) to [`MAX_THREADS`].
+fn thread_count(text: &str) -> Result<usize, String> {
+    bounded(text, 0, MAX_THREADS)
+}
+
+fn bounded(text: &str, min: usize, max: usize) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(n) if (min..=max).contains(&n) => Ok(n),
+        _ => Err(format!("expected a whole number from {min} to {max}")),
+    }
+}
+
+/// Writes `text` to standard output and flushes it (see [`say!`]).
+pub(crate) fn write_stdout(text: core::fmt::Arguments<'_>) -> anyhow::Result<()> {
+    let mut out = io::stdout().lock();
+    out.write_fmt(text)
+        .and_then(|()| out.flush())
+        .context("writing to standard output")
+}
+
+/// Whether `error` is standard output closed by its reader (a broken pipe).
+fn closed_stdout(error: &anyhow::Error) -> bool {
+    error.chain().any(|cause| {
+        cause
+            .downcast_ref::<io::Error>()
+            .is_some_and(|e| e.kind() == io::ErrorKind::BrokenPipe)
+    })
 }
 
 /// Sends `log` records to stderr as `level: message`: warnings and errors by default,

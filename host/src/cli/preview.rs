@@ -32,9 +32,9 @@ pub fn preview(scene: &Scene) -> RgbImage {
     let (lo, hi) = valid.fold((u16::MAX, 0), |(lo, hi), v| (lo.min(v), hi.max(v)));
     let span = f32::from(hi.saturating_sub(lo).max(1));
 
-    let tile = |x: u32, y: u32| -> [u8; 3] {
+    let tile = |x: usize, y: usize| -> [u8; 3] {
         let (col, row) = (x / tw, y / th);
-        let t = frames[(row as usize).min(1)];
+        let t = frames[row.min(1)];
         // Top-left source pixel of this preview pixel's s×s block.
         let (sx, sy) = ((x % tw) * s, (y % th) * s);
         match col {
@@ -48,7 +48,7 @@ pub fn preview(scene: &Scene) -> RgbImage {
                         }
                     }
                 }
-                sum.map(|v| (v / (s * s)) as u8)
+                sum.map(|v| (v / (s * s) as u32) as u8)
             }),
             1 => match scene.depth.get(t).and_then(|d| d.get(sx, sy)) {
                 Some(&v) if v > 0 => {

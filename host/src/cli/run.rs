@@ -26,7 +26,7 @@
 //! - Every file must have the size `S/scene_camera.json` gives, and every frame its files
 //!   (a heatmap excepted); other files are ignored.
 //! - Flow: a vector with a component of magnitude `1e9` or more (Middlebury's "unknown") or
-//!   a non-finite one becomes `[NaN, NaN]` ([`Flow::from_middlebury`]). riseg-core uses no
+//!   a non-finite one becomes `[NaN, NaN]` ([`FlowImage::with_unknown_as_nan`](crate::io::image::FlowImage::with_unknown_as_nan)). riseg-core uses no
 //!   information from it: CreateFrames drops a frame whose tracked point has non-finite
 //!   flow (`riseg_core::frames`), and CorrectMask's carry step moves a label only to a
 //!   target inside the image, which a NaN target is not (`riseg_core::mask`). The core
@@ -56,7 +56,7 @@ use std::{
 };
 
 use crate::{
-    flow::{Flow, FlowEstimator},
+    flow::FlowEstimator,
     io::image::{
         Gray16Image, ImageIoError, ImageProblem, ImageSizeError, read_flo, read_gray_widened,
         read_gray8, read_sized, write_gray16,
@@ -172,7 +172,7 @@ impl InputDirs {
                         let image =
                             read_sized(&path, scene.camera.width, scene.camera.height, read_flo)
                                 .map_err(|e| failed(t, InputKind::Flow, e))?;
-                        Some(Flow::from_middlebury(image))
+                        Some(image.with_unknown_as_nan())
                     }
                     _ => None,
                 };
@@ -196,24 +196,17 @@ fn read_static(
 ) -> Result<Segmentation, (InputKind, ImageIoError)> {
     let path = frame_file(dir, LABEL_DIR, t, "png");
     let mut labels = read_sized(&path, camera.width, camera.height, read_gray_widened)
-        .map_err(|e| (InputKind::Labels, e))?
-        .into_vec();
-    renumber(&mut labels);
+        .map_err(|e| (InputKind::Labels, e))?;
+    renumber(labels.as_mut_slice());
     let path = frame_file(dir, HEAT_DIR, t, "png");
     let heatmap = match read_sized(&path, camera.width, camera.height, read_gray8) {
-        Ok(heat) => heat.into_vec(),
-        Err(e) if matches!(e.problem, ImageProblem::Missing) => labels
-            .iter()
-            .map(|&l| if l == 0 { 0 } else { HEAT_CERTAIN })
-            .collect(),
+        Ok(heat) => heat,
+        Err(e) if matches!(e.problem, ImageProblem::Missing) => {
+            labels.map(|&l| if l == 0 { 0 } else { HEAT_CERTAIN })
+        }
         Err(e) => return Err((InputKind::Heatmap, e)),
     };
-    Ok(Segmentation {
-        width: camera.width as usize,
-        height: camera.height as usize,
-        labels,
-        heatmap,
-    })
+    Ok(Segmentation { labels, heatmap })
 }
 
 /// Renumbers the non-zero ids of `labels` to `1..=n` in increasing order; `0` stays `0`.
@@ -278,7 +271,7 @@ pub fn run_scene<S: StaticSegmenter, F: FlowEstimator>(
     out: &Path,
     on_frame: impl FnMut(usize),
 ) -> Result<usize, RunError> {
-    let scene = Scene::read(dir)?;
+    let scene = Scene::read_frames(dir)?;
     let given = inputs.read_scene(dir, &scene)?;
     let masks = replay_scene(tracker, &scene, given, on_frame).map_err(|(frame, source)| {
         RunError::Track {
@@ -322,8 +315,8 @@ mod command {
 Run RISeg on recorded scenes (the pushes already happened) and write its masks.
 
 For each scene folder (the format `riseg gen` writes and `riseg gen --help` describes: \
-scene_camera.json, rgb/NNNNNN.png, depth/NNNNNN.png; label/ and actions.json are not \
-needed), frame 0 is segmented by the built-in static segmenter; for every later frame the \
+scene_camera.json, rgb/NNNNNN.png, depth/NNNNNN.png; label/, flow/, actions.json and \
+poses.json are not read), frame 0 is segmented by the built-in static segmenter; for every later frame the \
 optical flow from the previous frame, the new static segmentation and riseg-core's \
 UpdateMask carry the mask forward and split what moved differently. The mask of frame t \
 is written to PRED/<scene>/label/<t>.png (16-bit, 0 = background), the layout \
@@ -401,22 +394,51 @@ Examples:
             flow: args.flow_dir.clone(),
             statics: args.static_dir.clone(),
         };
-        let mut frames = 0;
         for dir in &scenes {
+            super::refuse_output_over_input(dir, &args.out)?;
+        }
+        let mut frames = 0;
+        for (done, dir) in scenes.iter().enumerate() {
             let name = dir.file_name().unwrap_or(dir.as_os_str()).to_string_lossy();
             frames += run_scene(&mut tracker, dir, &inputs, &args.out, |t| {
                 bar.set_message(format!("{name}: frame {t}"));
+            })
+            .with_context(|| match done {
+                0 => "no masks written".to_owned(),
+                _ => format!(
+                    "the masks of the {done} scenes before {name} are complete in {}",
+                    args.out.display()
+                ),
             })?;
             bar.inc(1);
         }
         bar.finish_and_clear();
-        println!(
-            "wrote {frames} masks of {} scenes to {}",
+        say!(
+            "wrote {frames} masks of {} scenes to {}\n",
             scenes.len(),
             args.out.display()
-        );
+        )?;
         Ok(())
     }
+}
+
+/// Refuses an output folder where the masks of scene `dir` would land in `dir` itself
+/// (`--out` the dataset): they would replace its ground-truth `label/` files.
+fn refuse_output_over_input(dir: &Path, out: &Path) -> anyhow::Result<()> {
+    let target = out.join(scene_name(dir));
+    let same = match (std::fs::canonicalize(&target), std::fs::canonicalize(dir)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same {
+        anyhow::bail!(
+            "--out {}: the masks of {} would replace its own {LABEL_DIR}/ files; \
+             write them to another folder",
+            out.display(),
+            dir.display()
+        );
+    }
+    Ok(())
 }
 
 pub(in crate::cli) use command::*;

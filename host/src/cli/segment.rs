@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use crate::cli::config::ConfigArg;
-use crate::io::image::{Image, ImageIoError};
+use crate::io::image::{read_gray16, read_rgb8, read_sized};
 use crate::io::scene::{self, SceneCamera};
 use crate::segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams, viz};
 use anyhow::{Context as _, bail};
@@ -84,17 +84,26 @@ pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
     let (camera_path, rgb_path, depth_path) = segment_inputs(args)?;
     let camera = SceneCamera::read(&camera_path)?;
     let (width, height) = (camera.width, camera.height);
-    let rgb = crate::io::image::read_rgb8(&rgb_path)?;
-    ImageIoError::expect_size(&rgb_path, &rgb, width, height)?;
-    let depth = crate::io::image::read_gray16(&depth_path)?;
-    ImageIoError::expect_size(&depth_path, &depth, width, height)?;
+    let rgb = read_sized(&rgb_path, width, height, read_rgb8)?;
+    let depth = read_sized(&depth_path, width, height, read_gray16)?;
 
     let depth_m: Vec<f32> = depth
         .as_slice()
         .iter()
         .map(|&d| camera.depth_m(d))
         .collect();
-    let (w, h) = (width as usize, height as usize);
+    if !depth_m
+        .iter()
+        .any(|&z| riseg_core::image::valid_depth(z).is_some())
+    {
+        bail!(
+            "{}: no depth reading: every pixel is 0 (no return), 65535 (saturated) or \
+             beyond {} m",
+            depth_path.display(),
+            riseg_core::image::MAX_DEPTH_M
+        );
+    }
+    let (w, h) = (width, height);
     let frame = RgbdFrame::new(w, h, rgb.as_slice(), &depth_m)?;
     let mut segmenter = ClassicalSegmenter::new(SegmenterParams {
         seed: args.seed.unwrap_or(params.seed),
@@ -105,27 +114,23 @@ pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
         .with_context(|| format!("segmenting {}", rgb_path.display()))?;
     let seg = &out.segmentation;
 
-    crate::io::image::write_gray16(
-        &args.output,
-        &Image::from_vec(width, height, seg.labels.clone())?,
-    )?;
+    crate::io::image::write_gray16(&args.output, &seg.labels)?;
     if let Some(path) = &args.heatmap {
-        crate::io::image::write_gray8(path, &Image::from_vec(width, height, seg.heatmap.clone())?)?;
+        crate::io::image::write_gray8(path, &seg.heatmap)?;
     }
     if let Some(path) = &args.viz {
-        let picture = viz::side_by_side(rgb.as_slice(), seg);
-        crate::io::image::write_rgb8(path, &Image::from_vec(3 * width, height, picture)?)?;
+        crate::io::image::write_rgb8(path, &viz::side_by_side(&rgb, seg))?;
     }
     let n = out.plane.normal;
-    println!(
+    say!(
         "{} segments; table plane normal ({:.3}, {:.3}, {:.3}), camera {:.3} m above it; \
-         labels -> {}",
+         labels -> {}\n",
         seg.segment_count(),
         n.x,
         n.y,
         n.z,
         out.plane.offset_m,
         args.output.display()
-    );
+    )?;
     Ok(())
 }

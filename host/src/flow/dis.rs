@@ -42,7 +42,10 @@ use super::pool::Pool;
 use super::pyramid::{Padded, Plane, downsample, gradients, upsample_flow};
 use super::search::{Grid, SearchSettings, Template, positions, search_level};
 use super::variational::{RefineInput, RefineSettings, Warpable, refine};
-use super::{Flow, FlowError, FlowEstimator, GrayF32, RgbView, check_pair};
+use riseg_core::ImageView;
+
+use super::{FlowError, FlowEstimator, check_pair, luma};
+use crate::io::image::{FlowImage, Image};
 use std::sync::Arc;
 
 /// Parameters of [`DisFlow`]. Start from a preset ([`FlowParams::ULTRAFAST`],
@@ -250,17 +253,27 @@ impl DisFlow {
     /// [`FlowError::SizeMismatch`], [`FlowError::Empty`], [`FlowError::TooSmall`] if an
     /// image is smaller than one patch, [`FlowError::NonFinite`] for NaN or infinite
     /// pixels.
-    pub fn estimate_gray(&self, first: &GrayF32, second: &GrayF32) -> Result<Flow, FlowError> {
-        check_pair(first.width, first.height, second.width, second.height)?;
+    pub fn estimate_gray(
+        &self,
+        first: &Image<f32>,
+        second: &Image<f32>,
+    ) -> Result<FlowImage, FlowError> {
+        let (width, height) = first.size();
+        check_pair(width, height, second.width(), second.height())?;
         let p = self.params.patch_size_px;
-        if first.width < p || first.height < p {
+        if width < p || height < p {
             return Err(FlowError::TooSmall {
-                width: first.width,
-                height: first.height,
+                width,
+                height,
                 patch_px: p,
             });
         }
-        if !first.data.iter().chain(&second.data).all(|v| v.is_finite()) {
+        if !first
+            .as_slice()
+            .iter()
+            .chain(second.as_slice())
+            .all(|v| v.is_finite())
+        {
             return Err(FlowError::NonFinite);
         }
         #[cfg(feature = "threads")]
@@ -291,9 +304,10 @@ impl DisFlow {
         (finest, coarsest)
     }
 
-    fn run(&self, first: &GrayF32, second: &GrayF32) -> Flow {
+    fn run(&self, first_luma: &Image<f32>, second_luma: &Image<f32>) -> FlowImage {
         let prm = &self.params;
-        let (w, h) = (first.width, first.height);
+        let (w, h) = first_luma.size();
+        let (first, second) = (first_luma.as_slice(), second_luma.as_slice());
         let (finest, coarsest) = self.levels(w, h);
         let polish = finest > 0 && (prm.polish_gd_iters > 0 || prm.polish_variational_iters > 0);
         // Level l of both pyramids, from level 1 on (level 0 is the input itself).
@@ -301,10 +315,7 @@ impl DisFlow {
         let mut p1: Vec<Plane> = Vec::with_capacity(coarsest);
         for l in 1..=coarsest {
             let (a, b) = if l == 1 {
-                (
-                    downsample(&first.data, w, h),
-                    downsample(&second.data, w, h),
-                )
+                (downsample(first, w, h), downsample(second, w, h))
             } else {
                 let (a, b) = (&p0[l - 2], &p1[l - 2]);
                 (downsample(&a.data, a.w, a.h), downsample(&b.data, b.w, b.h))
@@ -314,7 +325,7 @@ impl DisFlow {
         }
         let level = |l: usize| -> (&[f32], &[f32], usize, usize) {
             match l.checked_sub(1) {
-                None => (&first.data, &second.data, w, h),
+                None => (first, second, w, h),
                 Some(k) => (&p0[k].data, &p1[k].data, p0[k].w, p0[k].h),
             }
         };
@@ -346,13 +357,9 @@ impl DisFlow {
                 propagation: false,
                 variational_iters: prm.polish_variational_iters,
             };
-            self.level(&first.data, &second.data, w, h, &mut flow, &step);
+            self.level(first, second, w, h, &mut flow, &step);
         }
-        Flow {
-            width: w,
-            height: h,
-            data: flow,
-        }
+        Image::from_vec(w, h, flow).expect("the flow field has one vector per pixel")
     }
 
     /// One pyramid level: inverse search from `flow`, densification, refinement.
@@ -429,14 +436,22 @@ struct LevelStep {
 }
 
 impl FlowEstimator for DisFlow {
-    /// Converts both images to luma ([`GrayF32::from_rgb`]) and runs
-    /// [`DisFlow::estimate_gray`].
+    /// Converts both images to luma ([`super::luma`]) and runs [`DisFlow::estimate_gray`].
     ///
     /// # Errors
     /// As [`DisFlow::estimate_gray`].
-    fn estimate(&self, first: RgbView<'_>, second: RgbView<'_>) -> Result<Flow, FlowError> {
-        check_pair(first.width, first.height, second.width, second.height)?;
-        self.estimate_gray(&GrayF32::from_rgb(first), &GrayF32::from_rgb(second))
+    fn estimate(
+        &self,
+        first: ImageView<'_, [u8; 3]>,
+        second: ImageView<'_, [u8; 3]>,
+    ) -> Result<FlowImage, FlowError> {
+        check_pair(
+            first.width(),
+            first.height(),
+            second.width(),
+            second.height(),
+        )?;
+        self.estimate_gray(&luma(first), &luma(second))
     }
 }
 
@@ -511,7 +526,7 @@ mod tests {
         let three = medium().with_threads(3).unwrap();
         let a = one.estimate(p.first_view(), p.second_view()).unwrap();
         let b = three.estimate(p.first_view(), p.second_view()).unwrap();
-        let bits = |f: &Flow| -> Vec<u32> {
+        let bits = |f: &FlowImage| -> Vec<u32> {
             f.as_slice()
                 .iter()
                 .flat_map(|v| [v[0].to_bits(), v[1].to_bits()])
@@ -523,8 +538,8 @@ mod tests {
     #[test]
     fn bad_input_is_an_error() {
         let est = medium();
-        let a = GrayF32::new(64, 48, vec![0.0; 64 * 48]).unwrap();
-        let b = GrayF32::new(48, 64, vec![0.0; 64 * 48]).unwrap();
+        let a = Image::from_vec(64, 48, vec![0.0; 64 * 48]).unwrap();
+        let b = Image::from_vec(48, 64, vec![0.0; 64 * 48]).unwrap();
         assert!(matches!(
             est.estimate_gray(&a, &b),
             Err(FlowError::SizeMismatch {
@@ -533,28 +548,27 @@ mod tests {
                 ..
             })
         ));
-        let e = GrayF32::new(0, 5, Vec::new()).unwrap();
+        let e = Image::from_vec(0, 5, Vec::new()).unwrap();
         assert!(matches!(
             est.estimate_gray(&e, &e),
             Err(FlowError::Empty { .. })
         ));
-        let tiny = GrayF32::new(7, 30, vec![0.0; 210]).unwrap();
+        let tiny = Image::from_vec(7, 30, vec![0.0; 210]).unwrap();
         assert!(matches!(
             est.estimate_gray(&tiny, &tiny),
             Err(FlowError::TooSmall { patch_px: 8, .. })
         ));
         let mut nan = a.clone();
-        nan.data[100] = f32::NAN;
+        nan.as_mut_slice()[100] = f32::NAN;
         assert!(matches!(
             est.estimate_gray(&a, &nan),
             Err(FlowError::NonFinite)
         ));
-        let rgb = [0u8; 3 * 16 * 16];
-        let small = [0u8; 3 * 16 * 8];
+        let rgb = [[0u8; 3]; 16 * 16];
         assert!(matches!(
             est.estimate(
-                RgbView::new(16, 16, &rgb).unwrap(),
-                RgbView::new(16, 8, &small).unwrap()
+                ImageView::packed(16, 16, &rgb).unwrap(),
+                ImageView::packed(16, 8, &rgb).unwrap()
             ),
             Err(FlowError::SizeMismatch { .. })
         ));
@@ -563,10 +577,10 @@ mod tests {
     #[test]
     fn smallest_images_work() {
         // One patch, one level: flat images give zero flow, no panic.
-        let a = GrayF32::new(8, 8, vec![10.0; 64]).unwrap();
+        let a = Image::from_vec(8, 8, vec![10.0; 64]).unwrap();
         let f = medium().estimate_gray(&a, &a).unwrap();
         assert!(f.as_slice().iter().all(|v| *v == [0.0, 0.0]));
-        let b = GrayF32::new(9, 17, (0..153).map(|i| (i * 7 % 13) as f32).collect()).unwrap();
+        let b = Image::from_vec(9, 17, (0..153).map(|i| (i * 7 % 13) as f32).collect()).unwrap();
         assert!(medium().estimate_gray(&b, &b).is_ok());
     }
 

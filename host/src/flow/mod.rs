@@ -5,9 +5,10 @@
 //! - A flow maps the **first** image to the **second**: the pixel at `(x, y)` in `first`
 //!   shows the same scene point as `(x + dx, y + dy)` in `second`. Pixel centres sit at
 //!   integer coordinates; `dx`, `dy` are in pixels, `dy` grows downwards.
-//! - [`Flow`] stores `[dx, dy]` per pixel, row-major, `width · height` entries: the layout
-//!   of a Middlebury `.flo` file body ([`Flow::from_image`], [`Flow::to_image`] and
-//!   [`crate::io::image::read_flo`] / [`crate::io::image::write_flo`] read and write those).
+//! - A flow is a [`FlowImage`]: `[dx, dy]` per pixel, row-major, `width · height` entries,
+//!   the layout of a Middlebury `.flo` file body ([`crate::io::image::read_flo`] /
+//!   [`crate::io::image::write_flo`] read and write it). Estimators borrow their images as
+//!   riseg-core [`ImageView`]s and return an owned flow.
 //! - Unknown flow: a vector with a component of magnitude [`UNKNOWN_FLOW_MIN_PX`] or more
 //!   (the Middlebury convention, as `.flo` files store it) or a non-finite one (how flows
 //!   in memory mark it) carries no information ([`is_known_flow`]).
@@ -33,7 +34,9 @@ mod variational;
 
 pub use dis::{DisFlow, FlowParams};
 
-use crate::io::image::FlowImage;
+use riseg_core::ImageView;
+
+use crate::io::image::{FlowImage, Image};
 
 /// Why a flow call failed.
 #[derive(Debug, thiserror::Error)]
@@ -84,14 +87,6 @@ pub enum FlowError {
         /// Patch side, pixels.
         patch_px: usize,
     },
-    /// A flow too large for an owned image (a side above `u32::MAX`).
-    #[error("flow {width}x{height} is too large for an image")]
-    TooLarge {
-        /// Width, pixels.
-        width: usize,
-        /// Height, pixels.
-        height: usize,
-    },
     /// A parameter is out of its documented range.
     #[error("invalid flow parameters: {0}")]
     InvalidParams(&'static str),
@@ -119,221 +114,30 @@ pub fn is_known_flow(v: [f32; 2]) -> bool {
     v[0].abs() < UNKNOWN_FLOW_MIN_PX && v[1].abs() < UNKNOWN_FLOW_MIN_PX
 }
 
-/// `width · height`, or `None` on overflow.
-fn area(width: usize, height: usize) -> Option<usize> {
-    width.checked_mul(height)
-}
-
-fn check_len(width: usize, height: usize, per_pixel: usize, len: usize) -> Result<(), FlowError> {
-    let needed = area(width, height).and_then(|n| n.checked_mul(per_pixel));
-    if needed == Some(len) {
-        Ok(())
-    } else {
-        Err(FlowError::BadLength {
-            width,
-            height,
-            len,
-            needed: needed.unwrap_or(usize::MAX),
+/// Luma (ITU-R BT.601 weights: 0.299 R + 0.587 G + 0.114 B), 0-255, packed row-major: the
+/// input of the estimators' grey-level stages (their thresholds are on that scale).
+#[must_use]
+pub fn luma(rgb: ImageView<'_, [u8; 3]>) -> Image<f32> {
+    let (width, height) = rgb.size();
+    Image::from_fn(width, height, |x, y| {
+        rgb.get(x, y).map_or(0.0, |p| {
+            0.299 * f32::from(p[0]) + 0.587 * f32::from(p[1]) + 0.114 * f32::from(p[2])
         })
-    }
+    })
 }
 
-/// A borrowed 8-bit RGB image, row-major, 3 bytes per pixel, no row padding: the layout of
-/// `image::RgbImage::as_raw` and of a decoded 8-bit RGB PNG.
-#[derive(Debug, Clone, Copy)]
-pub struct RgbView<'a> {
-    pub(crate) width: usize,
-    pub(crate) height: usize,
-    pub(crate) data: &'a [u8],
-}
-
-impl<'a> RgbView<'a> {
-    /// Wraps `data` as a `width x height` RGB image.
-    ///
-    /// # Errors
-    /// [`FlowError::BadLength`] if `data.len() != 3 · width · height`.
-    pub fn new(width: usize, height: usize, data: &'a [u8]) -> Result<Self, FlowError> {
-        check_len(width, height, 3, data.len())?;
-        Ok(Self {
-            width,
-            height,
-            data,
-        })
-    }
-
-    /// Width, pixels.
-    #[must_use]
-    pub const fn width(&self) -> usize {
-        self.width
-    }
-
-    /// Height, pixels.
-    #[must_use]
-    pub const fn height(&self) -> usize {
-        self.height
-    }
-
-    /// The interleaved bytes.
-    #[must_use]
-    pub const fn as_bytes(&self) -> &'a [u8] {
-        self.data
-    }
-}
-
-/// A grayscale `f32` image, row-major, no padding. Estimators expect values on a 0-255
-/// scale (their thresholds are in those units).
-#[derive(Debug, Clone, PartialEq)]
-pub struct GrayF32 {
-    width: usize,
-    height: usize,
-    data: Vec<f32>,
-}
-
-impl GrayF32 {
-    /// Wraps `data` as a `width x height` image.
-    ///
-    /// # Errors
-    /// [`FlowError::BadLength`] if `data.len() != width · height`.
-    pub fn new(width: usize, height: usize, data: Vec<f32>) -> Result<Self, FlowError> {
-        check_len(width, height, 1, data.len())?;
-        Ok(Self {
-            width,
-            height,
-            data,
-        })
-    }
-
-    /// Luma (ITU-R BT.601 weights: 0.299 R + 0.587 G + 0.114 B), 0-255.
-    #[must_use]
-    pub fn from_rgb(rgb: RgbView<'_>) -> Self {
-        let data = rgb
-            .data
-            .chunks_exact(3)
-            .map(|p| 0.299 * f32::from(p[0]) + 0.587 * f32::from(p[1]) + 0.114 * f32::from(p[2]))
-            .collect();
-        Self {
-            width: rgb.width,
-            height: rgb.height,
-            data,
-        }
-    }
-
-    /// Width, pixels.
-    #[must_use]
-    pub const fn width(&self) -> usize {
-        self.width
-    }
-
-    /// Height, pixels.
-    #[must_use]
-    pub const fn height(&self) -> usize {
-        self.height
-    }
-
-    /// The pixel values, row-major.
-    #[must_use]
-    pub fn as_slice(&self) -> &[f32] {
-        &self.data
-    }
-}
-
-/// A dense flow field: `[dx, dy]` pixels per pixel of the first image, row-major.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Flow {
-    pub(crate) width: usize,
-    pub(crate) height: usize,
-    pub(crate) data: Vec<[f32; 2]>,
-}
-
-impl Flow {
-    /// Wraps `data` as a `width x height` flow.
-    ///
-    /// # Errors
-    /// [`FlowError::BadLength`] if `data.len() != width · height`.
-    pub fn new(width: usize, height: usize, data: Vec<[f32; 2]>) -> Result<Self, FlowError> {
-        check_len(width, height, 1, data.len())?;
-        Ok(Self {
-            width,
-            height,
-            data,
-        })
-    }
-
-    /// The flow of a Middlebury `.flo` file ([`crate::io::image::read_flo`]) unchanged,
-    /// unknown vectors (`1e10`) included.
-    #[must_use]
-    pub fn from_image(image: FlowImage) -> Self {
-        let (width, height) = (image.width() as usize, image.height() as usize);
-        Self {
-            width,
-            height,
-            data: image.into_vec(),
-        }
-    }
-
-    /// The flow as an owned image, unchanged (for [`crate::io::image::write_flo`]).
-    ///
-    /// # Errors
-    /// [`FlowError::TooLarge`] if a side exceeds `u32::MAX`.
-    pub fn to_image(&self) -> Result<FlowImage, FlowError> {
-        let too_large = || FlowError::TooLarge {
-            width: self.width,
-            height: self.height,
-        };
-        let width = u32::try_from(self.width).map_err(|_| too_large())?;
-        let height = u32::try_from(self.height).map_err(|_| too_large())?;
-        FlowImage::from_vec(width, height, self.data.clone()).map_err(|_| too_large())
-    }
-
+/// Flow-specific operations on the owned flow image ([`FlowImage`]).
+impl Image<[f32; 2]> {
     /// The flow of a Middlebury `.flo` file ([`crate::io::image::read_flo`]) with every
     /// unknown vector ([`is_known_flow`]) replaced by `[NaN, NaN]`, the in-memory mark.
     #[must_use]
-    pub fn from_middlebury(image: FlowImage) -> Self {
-        let (width, height) = (image.width() as usize, image.height() as usize);
-        let data = image
-            .into_vec()
-            .into_iter()
-            .map(|v| if is_known_flow(v) { v } else { [f32::NAN; 2] })
-            .collect();
-        Self {
-            width,
-            height,
-            data,
+    pub fn with_unknown_as_nan(mut self) -> Self {
+        for v in self.as_mut_slice() {
+            if !is_known_flow(*v) {
+                *v = [f32::NAN; 2];
+            }
         }
-    }
-
-    /// Width, pixels.
-    #[must_use]
-    pub const fn width(&self) -> usize {
-        self.width
-    }
-
-    /// Height, pixels.
-    #[must_use]
-    pub const fn height(&self) -> usize {
-        self.height
-    }
-
-    /// The `[dx, dy]` vectors, row-major.
-    #[must_use]
-    pub fn as_slice(&self) -> &[[f32; 2]] {
-        &self.data
-    }
-
-    /// The `[dx, dy]` vectors, row-major, by value.
-    #[must_use]
-    pub fn into_vec(self) -> Vec<[f32; 2]> {
-        self.data
-    }
-
-    /// The vector at `(x, y)`, or `None` outside the field.
-    #[must_use]
-    pub fn get(&self, x: usize, y: usize) -> Option<[f32; 2]> {
-        if x < self.width && y < self.height {
-            self.data.get(y * self.width + x).copied()
-        } else {
-            None
-        }
+        self
     }
 
     /// Mean endpoint error `|self - truth|` (pixels) over the pixels `mask` selects (all
@@ -344,20 +148,28 @@ impl Flow {
     /// [`FlowError::SizeMismatch`] if the fields differ in size, [`FlowError::BadLength`]
     /// if `mask` has the wrong length, [`FlowError::EmptySelection`] if it selects nothing.
     pub fn mean_epe(&self, truth: &Self, mask: Option<&[bool]>) -> Result<f64, FlowError> {
-        if (self.width, self.height) != (truth.width, truth.height) {
+        let (width, height) = self.size();
+        if (width, height) != truth.size() {
             return Err(FlowError::SizeMismatch {
-                first_width: self.width,
-                first_height: self.height,
-                second_width: truth.width,
-                second_height: truth.height,
+                first_width: width,
+                first_height: height,
+                second_width: truth.width(),
+                second_height: truth.height(),
             });
         }
-        if let Some(m) = mask {
-            check_len(self.width, self.height, 1, m.len())?;
+        if let Some(m) = mask
+            && m.len() != self.as_slice().len()
+        {
+            return Err(FlowError::BadLength {
+                width,
+                height,
+                len: m.len(),
+                needed: self.as_slice().len(),
+            });
         }
         let mut sum = 0.0f64;
         let mut count = 0usize;
-        for (i, (a, b)) in self.data.iter().zip(&truth.data).enumerate() {
+        for (i, (a, b)) in self.as_slice().iter().zip(truth.as_slice()).enumerate() {
             if is_known_flow(*b) && mask.is_none_or(|m| m[i]) {
                 sum += f64::from(libm::hypotf(a[0] - b[0], a[1] - b[1]));
                 count += 1;
@@ -371,15 +183,20 @@ impl Flow {
     }
 }
 
-/// Anything that turns two RGB images into a dense [`Flow`] from the first to the second:
-/// the built-in [`DisFlow`] today, a learned network (RAFT through ONNX) later.
+/// Anything that turns two RGB images into a dense flow ([`FlowImage`]) from the first to
+/// the second: the built-in [`DisFlow`] today, a learned network (RAFT through ONNX) later.
+/// The images are lent, as views of any row stride.
 pub trait FlowEstimator {
     /// Flow from `first` to `second`.
     ///
     /// # Errors
     /// [`FlowError::SizeMismatch`] if the images differ in size, [`FlowError::Empty`] if
     /// they have no pixels; implementations document any further cases.
-    fn estimate(&self, first: RgbView<'_>, second: RgbView<'_>) -> Result<Flow, FlowError>;
+    fn estimate(
+        &self,
+        first: ImageView<'_, [u8; 3]>,
+        second: ImageView<'_, [u8; 3]>,
+    ) -> Result<FlowImage, FlowError>;
 }
 
 /// Checks that two images have one non-empty size.
@@ -406,27 +223,17 @@ mod tests {
     use super::*;
 
     #[test]
-    fn views_check_their_length() {
-        assert!(RgbView::new(2, 2, &[0; 12]).is_ok());
-        assert!(matches!(
-            RgbView::new(2, 2, &[0; 11]),
-            Err(FlowError::BadLength { needed: 12, .. })
-        ));
-        assert!(matches!(
-            RgbView::new(usize::MAX, 3, &[]),
-            Err(FlowError::BadLength {
-                needed: usize::MAX,
-                ..
-            })
-        ));
-        assert!(GrayF32::new(3, 1, vec![0.0; 2]).is_err());
-        assert!(Flow::new(1, 2, vec![[0.0; 2]; 2]).is_ok());
-    }
-
-    #[test]
-    fn luma_of_primaries() {
-        let rgb = [255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255];
-        let g = GrayF32::from_rgb(RgbView::new(4, 1, &rgb).unwrap());
+    fn luma_of_primaries_from_a_strided_view() {
+        // Two rows of 2 pixels, stride 3: the third pixel of each row is padding.
+        let rgb = [
+            [255, 0, 0],
+            [0, 255, 0],
+            [9, 9, 9],
+            [0, 0, 255],
+            [255, 255, 255],
+        ];
+        let g = luma(ImageView::new(2, 2, 3, &rgb).unwrap());
+        assert_eq!(g.size(), (2, 2));
         let want = [76.245, 149.685, 29.07, 255.0];
         for (a, b) in g.as_slice().iter().zip(want) {
             assert!((a - b).abs() < 1e-3, "{a} vs {b}");
@@ -448,7 +255,7 @@ mod tests {
             ],
         )
         .unwrap();
-        let flow = Flow::from_middlebury(image);
+        let flow = image.with_unknown_as_nan();
         assert_eq!((flow.width(), flow.height()), (5, 1));
         let v = flow.as_slice();
         assert_eq!(v[0], [1.5, -2.0]);
@@ -460,20 +267,20 @@ mod tests {
 
     #[test]
     fn mean_epe_over_mask_and_errors() {
-        let a = Flow::new(2, 1, vec![[3.0, 4.0], [0.0, 0.0]]).unwrap();
-        let b = Flow::new(2, 1, vec![[0.0; 2]; 2]).unwrap();
+        let a = FlowImage::from_vec(2, 1, vec![[3.0, 4.0], [0.0, 0.0]]).unwrap();
+        let b = FlowImage::from_vec(2, 1, vec![[0.0; 2]; 2]).unwrap();
         assert!((a.mean_epe(&b, None).unwrap() - 2.5).abs() < 1e-9);
         assert!((a.mean_epe(&b, Some(&[true, false])).unwrap() - 5.0).abs() < 1e-9);
         assert!(matches!(
             a.mean_epe(&b, Some(&[false, false])),
             Err(FlowError::EmptySelection)
         ));
-        let c = Flow::new(1, 2, vec![[0.0; 2]; 2]).unwrap();
+        let c = FlowImage::from_vec(1, 2, vec![[0.0; 2]; 2]).unwrap();
         assert!(matches!(
             a.mean_epe(&c, None),
             Err(FlowError::SizeMismatch { .. })
         ));
-        assert_eq!(a.get(1, 0), Some([0.0, 0.0]));
+        assert_eq!(a.get(1, 0), Some(&[0.0, 0.0]));
         assert_eq!(a.get(2, 0), None);
     }
 }

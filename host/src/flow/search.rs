@@ -74,7 +74,7 @@ struct Stats {
 }
 
 /// Largest patch side the search supports (`FlowParams` validates against it).
-pub(crate) const MAX_PATCH: usize = 32;
+pub(crate) const MAX_PATCH_PX: usize = 32;
 
 /// Sums over the patch. Column-wise accumulators keep every loop element-wise (so it
 /// vectorises) and the summation order fixed.
@@ -88,13 +88,13 @@ fn stats(
     v: f32,
     size: usize,
 ) -> Stats {
-    let size = size.min(MAX_PATCH);
+    let size = size.min(MAX_PATCH_PX);
     let tap = i1.tap(px as f32 + u, py as f32 + v, size);
     let (w00, w01, w10, w11) = (tap.w00, tap.w01, tap.w10, tap.w11);
-    let mut r = [0.0f32; MAX_PATCH];
-    let mut gxr = [0.0f32; MAX_PATCH];
-    let mut gyr = [0.0f32; MAX_PATCH];
-    let mut rr = [0.0f32; MAX_PATCH];
+    let mut r = [0.0f32; MAX_PATCH_PX];
+    let mut gxr = [0.0f32; MAX_PATCH_PX];
+    let mut gyr = [0.0f32; MAX_PATCH_PX];
+    let mut rr = [0.0f32; MAX_PATCH_PX];
     let (r, gxr, gyr, rr) = (
         &mut r[..size],
         &mut gxr[..size],
@@ -140,8 +140,8 @@ struct PatchModel {
 impl PatchModel {
     fn new(t: &Template<'_>, px: usize, py: usize, size: usize, mean_norm: bool) -> Self {
         // Column-wise sums (element-wise loops vectorise), then a fixed-order total.
-        let size = size.min(MAX_PATCH);
-        let mut cols = [[0.0f32; MAX_PATCH]; 5];
+        let size = size.min(MAX_PATCH_PX);
+        let mut cols = [[0.0f32; MAX_PATCH_PX]; 5];
         for row in 0..size {
             let off = (py + row) * t.w + px;
             let (gx, gy) = (&t.gx[off..][..size], &t.gy[off..][..size]);

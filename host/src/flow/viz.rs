@@ -5,7 +5,7 @@
 //! up is blue-violet; zero flow is white. Vectors longer than the maximum are drawn at
 //! 75 % brightness; non-finite vectors (unknown flow) are black.
 
-use super::Flow;
+use crate::io::image::{FlowImage, RgbImage};
 
 /// Colour-wheel segment lengths: red-yellow, yellow-green, green-cyan, cyan-blue,
 /// blue-magenta, magenta-red.
@@ -36,7 +36,7 @@ fn wheel() -> [[f32; 3]; NCOLS] {
 
 /// The largest finite vector length in `flow`, pixels (0 for an all-zero flow).
 #[must_use]
-pub fn max_magnitude(flow: &Flow) -> f32 {
+pub fn max_magnitude(flow: &FlowImage) -> f32 {
     flow.as_slice()
         .iter()
         .map(|v| libm::hypotf(v[0], v[1]))
@@ -44,11 +44,10 @@ pub fn max_magnitude(flow: &Flow) -> f32 {
         .fold(0.0, f32::max)
 }
 
-/// Interleaved 8-bit RGB (`3 · width · height` bytes, row-major) of `flow`, saturation
-/// scaled so that `max_magnitude_px` (default: the flow's largest vector) is fully
-/// saturated.
+/// `flow` drawn as an 8-bit RGB image of its size, saturation scaled so that
+/// `max_magnitude_px` (default: the flow's largest vector) is fully saturated.
 #[must_use]
-pub fn flow_to_rgb(flow: &Flow, max_magnitude_px: Option<f32>) -> Vec<u8> {
+pub fn flow_to_rgb(flow: &FlowImage, max_magnitude_px: Option<f32>) -> RgbImage {
     let wheel = wheel();
     let max = max_magnitude_px.unwrap_or_else(|| max_magnitude(flow));
     let inv = if max > 0.0 && max.is_finite() {
@@ -56,11 +55,9 @@ pub fn flow_to_rgb(flow: &Flow, max_magnitude_px: Option<f32>) -> Vec<u8> {
     } else {
         0.0
     };
-    let mut out = Vec::with_capacity(3 * flow.as_slice().len());
-    for v in flow.as_slice() {
+    flow.map(|v| {
         if !(v[0].is_finite() && v[1].is_finite()) {
-            out.extend_from_slice(&[0, 0, 0]);
-            continue;
+            return [0; 3];
         }
         let rad = libm::hypotf(v[0], v[1]) * inv;
         let a = libm::atan2f(-v[1], -v[0]) / core::f32::consts::PI;
@@ -68,17 +65,18 @@ pub fn flow_to_rgb(flow: &Flow, max_magnitude_px: Option<f32>) -> Vec<u8> {
         let k0 = (fk.floor() as usize).min(NCOLS - 1);
         let k1 = (k0 + 1) % NCOLS;
         let f = fk - k0 as f32;
-        for (c0, c1) in wheel[k0].iter().zip(&wheel[k1]) {
+        let mut rgb = [0u8; 3];
+        for ((out, c0), c1) in rgb.iter_mut().zip(&wheel[k0]).zip(&wheel[k1]) {
             let col = ((1.0 - f) * c0 + f * c1) / 255.0;
             let col = if rad <= 1.0 {
                 1.0 - rad * (1.0 - col)
             } else {
                 col * 0.75
             };
-            out.push((255.0 * col).clamp(0.0, 255.0) as u8);
+            *out = (255.0 * col).clamp(0.0, 255.0) as u8;
         }
-    }
-    out
+        rgb
+    })
 }
 
 #[cfg(test)]
@@ -86,9 +84,8 @@ mod tests {
     use super::*;
 
     fn colour(dx: f32, dy: f32, max: f32) -> [u8; 3] {
-        let f = Flow::new(1, 1, vec![[dx, dy]]).unwrap();
-        let c = flow_to_rgb(&f, Some(max));
-        [c[0], c[1], c[2]]
+        let f = FlowImage::from_vec(1, 1, vec![[dx, dy]]).unwrap();
+        flow_to_rgb(&f, Some(max)).as_slice()[0]
     }
 
     #[test]
@@ -115,10 +112,10 @@ mod tests {
         assert_eq!(half, [255, 127, 127]);
         let over = colour(2.0, 0.0, 1.0);
         assert_eq!(over, [191, 0, 0]);
-        let f = Flow::new(2, 1, vec![[0.0, 3.0], [f32::NAN, 0.0]]).unwrap();
+        let f = FlowImage::from_vec(2, 1, vec![[0.0, 3.0], [f32::NAN, 0.0]]).unwrap();
         assert_eq!(max_magnitude(&f), 3.0);
         let c = flow_to_rgb(&f, None);
-        assert_eq!(&c[3..], &[0, 0, 0], "unknown is black");
+        assert_eq!(c.as_slice()[1], [0, 0, 0], "unknown is black");
         assert_eq!(wheel().len(), SEGMENTS.iter().sum::<usize>());
     }
 }

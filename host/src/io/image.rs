@@ -1,9 +1,12 @@
-//! Owned images and their files: 8-bit RGB PNG, 16-bit grey PNG (depth, labels), 8-bit
-//! grey PNG (heatmaps) and Middlebury `.flo` optical flow.
+//! The host's one owned image type and its files: 8-bit RGB PNG, 16-bit grey PNG (depth,
+//! labels), 8-bit grey PNG (heatmaps) and Middlebury `.flo` optical flow.
 //!
 //! Contract:
 //! - [`Image<T>`] is row-major with no padding: pixel `(x, y)` is `data[y·width + x]`, and
-//!   `data.len() == width·height` always holds (checked on construction).
+//!   `data.len() == width·height` always holds (checked on construction). Sizes are
+//!   `usize`. Every image in the host is one ([`RgbImage`], [`DepthImage`], [`FlowImage`],
+//!   labels and heatmaps); [`Image::view`] lends it to riseg-core, to the flow estimators
+//!   and to the segmenter as an [`ImageView`] without copying.
 //! - Every reader error is an [`ImageIoError`] whose message starts with the file's path and
 //!   then says the problem: missing file, unreadable file, corrupt PNG, wrong colour type or
 //!   bit depth, wrong size (see [`ImageIoError::expect_size`]), or a malformed `.flo`.
@@ -23,21 +26,28 @@ use std::{
     path::{Path, PathBuf},
 };
 
+use riseg_core::ImageView;
+
 use super::files::{DiskFiles, Files};
 use super::write_atomic;
 
 use image::{
-    DynamicImage, ExtendedColorType, ImageEncoder,
+    DynamicImage, ExtendedColorType, ImageDecoder as _, ImageEncoder,
     codecs::png::{CompressionType, FilterType, PngDecoder, PngEncoder},
 };
 
 /// An owned, row-major image without padding.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Image<T> {
-    width: u32,
-    height: u32,
+    width: usize,
+    height: usize,
     data: Vec<T>,
 }
+
+/// The most pixels riseg decodes from one file or accepts in a scene's camera: 16.8
+/// million (4096 x 4096, a 5K frame). A PNG header declaring more is refused before any
+/// pixel memory is allocated, so a corrupt or hostile 74-byte file cannot exhaust memory.
+pub const MAX_IMAGE_PIXELS: usize = 1 << 24;
 
 /// 8-bit RGB pixels.
 pub type RgbImage = Image<[u8; 3]>;
@@ -52,12 +62,12 @@ pub type Gray8Image = Image<u8>;
 
 /// `data.len()` does not match `width·height` in [`Image::from_vec`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-#[error("image data has {len} pixels, {width}x{height} needs {}", (*.width as u64) * (*.height as u64))]
+#[error("image data has {len} pixels, which is not {width}x{height}")]
 pub struct ImageSizeError {
     /// Requested width, pixels.
-    pub width: u32,
+    pub width: usize,
     /// Requested height, pixels.
-    pub height: u32,
+    pub height: usize,
     /// Pixels supplied.
     pub len: usize,
 }
@@ -67,8 +77,8 @@ impl<T> Image<T> {
     ///
     /// # Errors
     /// [`ImageSizeError`] if `data.len() != width·height`.
-    pub fn from_vec(width: u32, height: u32, data: Vec<T>) -> Result<Self, ImageSizeError> {
-        let needed = (width as usize).checked_mul(height as usize);
+    pub fn from_vec(width: usize, height: usize, data: Vec<T>) -> Result<Self, ImageSizeError> {
+        let needed = width.checked_mul(height);
         if needed == Some(data.len()) {
             Ok(Self {
                 width,
@@ -85,8 +95,14 @@ impl<T> Image<T> {
     }
 
     /// An image whose pixel `(x, y)` is `f(x, y)`, built row by row.
-    pub fn from_fn(width: u32, height: u32, mut f: impl FnMut(u32, u32) -> T) -> Self {
-        let mut data = Vec::with_capacity(width as usize * height as usize);
+    ///
+    /// # Panics
+    /// If `width·height` overflows `usize` (no such image fits in memory).
+    pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> T) -> Self {
+        let pixels = width
+            .checked_mul(height)
+            .expect("image size overflows usize");
+        let mut data = Vec::with_capacity(pixels);
         for y in 0..height {
             for x in 0..width {
                 data.push(f(x, y));
@@ -101,24 +117,37 @@ impl<T> Image<T> {
 
     /// Width, pixels.
     #[must_use]
-    pub fn width(&self) -> u32 {
+    pub const fn width(&self) -> usize {
         self.width
     }
 
     /// Height, pixels.
     #[must_use]
-    pub fn height(&self) -> u32 {
+    pub const fn height(&self) -> usize {
         self.height
+    }
+
+    /// `(width, height)`, pixels.
+    #[must_use]
+    pub const fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
     }
 
     /// The pixel at `(x, y)`, or `None` outside the image.
     #[must_use]
-    pub fn get(&self, x: u32, y: u32) -> Option<&T> {
+    pub fn get(&self, x: usize, y: usize) -> Option<&T> {
         if x < self.width && y < self.height {
-            self.data.get(y as usize * self.width as usize + x as usize)
+            self.data.get(y * self.width + x)
         } else {
             None
         }
+    }
+
+    /// The image lent as a riseg-core view (packed: the stride is the width).
+    #[must_use]
+    pub fn view(&self) -> ImageView<'_, T> {
+        ImageView::packed(self.width, self.height, &self.data)
+            .expect("an Image holds exactly width·height pixels")
     }
 
     /// All pixels, row-major.
@@ -184,13 +213,29 @@ pub enum ImageProblem {
     #[error("expected {expected_width}x{expected_height} pixels, found {width}x{height}")]
     WrongSize {
         /// Width the caller needs.
-        expected_width: u32,
+        expected_width: usize,
         /// Height the caller needs.
-        expected_height: u32,
+        expected_height: usize,
         /// Width in the file.
-        width: u32,
+        width: usize,
         /// Height in the file.
-        height: u32,
+        height: usize,
+    },
+    /// The file declares more than [`MAX_IMAGE_PIXELS`]; it was not decoded.
+    #[error("declares {width}x{height} pixels, more than the {MAX_IMAGE_PIXELS} riseg reads")]
+    TooManyPixels {
+        /// Declared width.
+        width: usize,
+        /// Declared height.
+        height: usize,
+    },
+    /// An image to write has a side beyond what a PNG can hold (`u32`).
+    #[error("a {width}x{height} image is too large for a PNG")]
+    TooLargeForPng {
+        /// Width, pixels.
+        width: usize,
+        /// Height, pixels.
+        height: usize,
     },
     /// The `.flo` file is malformed.
     #[error("not a valid Middlebury .flo file: {0}")]
@@ -221,8 +266,8 @@ impl ImageIoError {
     pub fn expect_size<T>(
         path: &Path,
         image: &Image<T>,
-        width: u32,
-        height: u32,
+        width: usize,
+        height: usize,
     ) -> Result<(), Self> {
         if image.width == width && image.height == height {
             Ok(())
@@ -249,10 +294,31 @@ fn read_bytes<'a>(files: &'a impl Files, path: &Path) -> Result<Cow<'a, [u8]>, I
     files.read(path).map_err(|e| ImageIoError::io(path, e))
 }
 
+/// The size the PNG header of `bytes` declares (read from the header alone).
+fn png_size(path: &Path, bytes: &[u8]) -> Result<(usize, usize), ImageIoError> {
+    let decoder = PngDecoder::new(Cursor::new(bytes))
+        .map_err(|e| ImageIoError::new(path, ImageProblem::CorruptPng(e)))?;
+    let (width, height) = decoder.dimensions();
+    Ok((width as usize, height as usize))
+}
+
+/// Decodes `path` from `files` after checking the declared size against
+/// [`MAX_IMAGE_PIXELS`] (the decoder's allocation is capped to match).
 fn decode_png(files: &impl Files, path: &Path) -> Result<DynamicImage, ImageIoError> {
     let bytes = read_bytes(files, path)?;
+    let (width, height) = png_size(path, &bytes)?;
+    if width.saturating_mul(height) > MAX_IMAGE_PIXELS {
+        return Err(ImageIoError::new(
+            path,
+            ImageProblem::TooManyPixels { width, height },
+        ));
+    }
     let corrupt = |e| ImageIoError::new(path, ImageProblem::CorruptPng(e));
-    let decoder = PngDecoder::new(Cursor::new(&*bytes)).map_err(corrupt)?;
+    let mut decoder = PngDecoder::new(Cursor::new(&*bytes)).map_err(corrupt)?;
+    let mut limits = image::Limits::default();
+    // 16-bit RGBA, the widest PNG pixel, plus room for the decoder's own rows.
+    limits.max_alloc = Some(2 * (MAX_IMAGE_PIXELS as u64) * 8);
+    decoder.set_limits(limits).map_err(corrupt)?;
     DynamicImage::from_decoder(decoder).map_err(corrupt)
 }
 
@@ -281,16 +347,49 @@ fn wrong_format(path: &Path, expected: &'static str, found: &DynamicImage) -> Im
 }
 
 /// Reads `path` with `read` (one of this module's readers) and checks that the image is
-/// `width` x `height` pixels.
+/// `width` x `height` pixels. A PNG's declared size is checked before it is decoded, so a
+/// file of the wrong size costs no pixel memory.
 ///
 /// # Errors
 /// `read`'s errors, or [`ImageProblem::WrongSize`] naming `path`.
 pub fn read_sized<T>(
     path: &Path,
-    width: u32,
-    height: u32,
+    width: usize,
+    height: usize,
     read: impl FnOnce(&Path) -> Result<Image<T>, ImageIoError>,
 ) -> Result<Image<T>, ImageIoError> {
+    read_sized_in(&DiskFiles, path, width, height, read)
+}
+
+/// [`read_sized`] with the PNG header read from `files`.
+///
+/// # Errors
+/// As [`read_sized`].
+pub fn read_sized_in<T>(
+    files: &impl Files,
+    path: &Path,
+    width: usize,
+    height: usize,
+    read: impl FnOnce(&Path) -> Result<Image<T>, ImageIoError>,
+) -> Result<Image<T>, ImageIoError> {
+    const PNG_SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
+    // A file that cannot be read, or is no PNG, is left to `read` to name.
+    if let Ok(bytes) = files.read(path)
+        && bytes.starts_with(&PNG_SIGNATURE)
+    {
+        let (declared_width, declared_height) = png_size(path, &bytes)?;
+        if (declared_width, declared_height) != (width, height) {
+            return Err(ImageIoError::new(
+                path,
+                ImageProblem::WrongSize {
+                    expected_width: width,
+                    expected_height: height,
+                    width: declared_width,
+                    height: declared_height,
+                },
+            ));
+        }
+    }
     let image = read(path)?;
     ImageIoError::expect_size(path, &image, width, height)?;
     Ok(image)
@@ -420,7 +519,7 @@ fn from_decoded<T>(
     height: u32,
     data: Vec<T>,
 ) -> Result<Image<T>, ImageIoError> {
-    Image::from_vec(width, height, data).map_err(|e| {
+    Image::from_vec(width as usize, height as usize, data).map_err(|e| {
         ImageIoError::new(
             path,
             ImageProblem::CorruptPng(image::ImageError::IoError(io::Error::other(e))),
@@ -431,13 +530,15 @@ fn from_decoded<T>(
 fn encode_png(
     path: &Path,
     bytes: &[u8],
-    width: u32,
-    height: u32,
+    (width, height): (usize, usize),
     color: ExtendedColorType,
 ) -> Result<Vec<u8>, ImageIoError> {
+    let too_large = || ImageIoError::new(path, ImageProblem::TooLargeForPng { width, height });
+    let png_width = u32::try_from(width).map_err(|_| too_large())?;
+    let png_height = u32::try_from(height).map_err(|_| too_large())?;
     let mut out = Vec::new();
     PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Adaptive)
-        .write_image(bytes, width, height, color)
+        .write_image(bytes, png_width, png_height, color)
         .map_err(|e| ImageIoError::new(path, ImageProblem::CorruptPng(e)))?;
     Ok(out)
 }
@@ -448,13 +549,7 @@ fn encode_png(
 /// I/O errors, or an image the PNG encoder refuses (e.g. zero width), naming `path`.
 pub fn write_rgb8(path: &Path, image: &RgbImage) -> Result<(), ImageIoError> {
     let bytes: Vec<u8> = image.data.iter().flatten().copied().collect();
-    let png = encode_png(
-        path,
-        &bytes,
-        image.width,
-        image.height,
-        ExtendedColorType::Rgb8,
-    )?;
+    let png = encode_png(path, &bytes, image.size(), ExtendedColorType::Rgb8)?;
     write_file(path, &png)
 }
 
@@ -465,13 +560,7 @@ pub fn write_rgb8(path: &Path, image: &RgbImage) -> Result<(), ImageIoError> {
 pub fn write_gray16(path: &Path, image: &Gray16Image) -> Result<(), ImageIoError> {
     // The encoder takes native-endian samples and writes PNG's big-endian ones.
     let bytes: Vec<u8> = image.data.iter().flat_map(|v| v.to_ne_bytes()).collect();
-    let png = encode_png(
-        path,
-        &bytes,
-        image.width,
-        image.height,
-        ExtendedColorType::L16,
-    )?;
+    let png = encode_png(path, &bytes, image.size(), ExtendedColorType::L16)?;
     write_file(path, &png)
 }
 
@@ -480,20 +569,14 @@ pub fn write_gray16(path: &Path, image: &Gray16Image) -> Result<(), ImageIoError
 /// # Errors
 /// As [`write_rgb8`].
 pub fn write_gray8(path: &Path, image: &Gray8Image) -> Result<(), ImageIoError> {
-    let png = encode_png(
-        path,
-        &image.data,
-        image.width,
-        image.height,
-        ExtendedColorType::L8,
-    )?;
+    let png = encode_png(path, &image.data, image.size(), ExtendedColorType::L8)?;
     write_file(path, &png)
 }
 
 /// The `.flo` magic number (the bytes `PIEH` read as a little-endian `f32`).
 pub const FLO_MAGIC: f32 = 202_021.25;
 /// Largest width or height accepted from a `.flo` header (bounds memory on corrupt files).
-pub const FLO_MAX_SIDE: u32 = 1 << 15;
+pub const FLO_MAX_SIDE_PX: u32 = 1 << 15;
 const FLO_HEADER_BYTES: usize = 12;
 
 /// What is wrong with `.flo` bytes, or with a flow that cannot be written as a `.flo` file.
@@ -512,8 +595,8 @@ pub enum FloFormatError {
         /// The float found.
         found: f32,
     },
-    /// A side in the header is below 1 or above [`FLO_MAX_SIDE`].
-    #[error("header says {width}x{height} pixels; each side must be 1..={FLO_MAX_SIDE}")]
+    /// A side in the header is below 1 or above [`FLO_MAX_SIDE_PX`].
+    #[error("header says {width}x{height} pixels; each side must be 1..={FLO_MAX_SIDE_PX}")]
     BadSize {
         /// Width as stored.
         width: i32,
@@ -524,30 +607,38 @@ pub enum FloFormatError {
     #[error("{found} bytes, a {width}x{height} flow needs {expected}")]
     Length {
         /// Width from the header.
-        width: u32,
+        width: usize,
         /// Height from the header.
-        height: u32,
+        height: usize,
         /// Bytes the header requires, header included.
         expected: usize,
         /// Bytes present.
         found: usize,
     },
-    /// A flow to encode has a side of zero or above [`FLO_MAX_SIDE`].
-    #[error("cannot write a {width}x{height} flow; each side must be 1..={FLO_MAX_SIDE}")]
+    /// A vector component is NaN or infinite (unknown flow is written as `1e10`, finite).
+    #[error("the vector of pixel ({x}, {y}) is not finite; unknown flow is written as 1e10")]
+    NonFinite {
+        /// Column of the first such pixel.
+        x: usize,
+        /// Row of the first such pixel.
+        y: usize,
+    },
+    /// A flow to encode has a side of zero or above [`FLO_MAX_SIDE_PX`].
+    #[error("cannot write a {width}x{height} flow; each side must be 1..={FLO_MAX_SIDE_PX}")]
     Unwritable {
         /// Width of the flow.
-        width: u32,
+        width: usize,
         /// Height of the flow.
-        height: u32,
+        height: usize,
     },
 }
 
 /// The `.flo` bytes of `flow`.
 ///
 /// # Errors
-/// [`FloFormatError::Unwritable`] if a side is zero or above [`FLO_MAX_SIDE`].
+/// [`FloFormatError::Unwritable`] if a side is zero or above [`FLO_MAX_SIDE_PX`].
 pub fn encode_flo(flow: &FlowImage) -> Result<Vec<u8>, FloFormatError> {
-    let side_ok = |s: u32| s > 0 && s <= FLO_MAX_SIDE;
+    let side_ok = |s: usize| s > 0 && s <= FLO_MAX_SIDE_PX as usize;
     if !side_ok(flow.width) || !side_ok(flow.height) {
         return Err(FloFormatError::Unwritable {
             width: flow.width,
@@ -556,7 +647,7 @@ pub fn encode_flo(flow: &FlowImage) -> Result<Vec<u8>, FloFormatError> {
     }
     let mut bytes = Vec::with_capacity(FLO_HEADER_BYTES + flow.data.len() * 8);
     bytes.extend_from_slice(&FLO_MAGIC.to_le_bytes());
-    // Both sides are at most FLO_MAX_SIDE, so they fit in i32.
+    // Both sides are at most FLO_MAX_SIDE_PX, so they fit in i32.
     bytes.extend_from_slice(&(flow.width as i32).to_le_bytes());
     bytes.extend_from_slice(&(flow.height as i32).to_le_bytes());
     for [dx, dy] in &flow.data {
@@ -566,7 +657,7 @@ pub fn encode_flo(flow: &FlowImage) -> Result<Vec<u8>, FloFormatError> {
     Ok(bytes)
 }
 
-/// Parses `.flo` bytes. The header is checked against [`FLO_MAX_SIDE`] and the length
+/// Parses `.flo` bytes. The header is checked against [`FLO_MAX_SIDE_PX`] and the length
 /// before anything is allocated, so a corrupt header cannot exhaust memory.
 ///
 /// # Errors
@@ -581,15 +672,16 @@ pub fn decode_flo(bytes: &[u8]) -> Result<FlowImage, FloFormatError> {
         return Err(FloFormatError::BadMagic { found: magic });
     }
     let (w, h) = (i32::from_le_bytes(w), i32::from_le_bytes(h));
-    let side_ok = |s: i32| s > 0 && s as u32 <= FLO_MAX_SIDE;
+    let side_ok = |s: i32| s > 0 && s as u32 <= FLO_MAX_SIDE_PX;
     if !side_ok(w) || !side_ok(h) {
         return Err(FloFormatError::BadSize {
             width: w,
             height: h,
         });
     }
-    let (width, height) = (w as u32, h as u32);
-    let pixels = width as usize * height as usize;
+    // Both sides are in 1..=FLO_MAX_SIDE_PX, so they fit in usize and their product does too.
+    let (width, height) = (w as usize, h as usize);
+    let pixels = width * height;
     let expected = FLO_HEADER_BYTES + pixels * 8;
     if bytes.len() != expected {
         return Err(FloFormatError::Length {
@@ -608,6 +700,15 @@ pub fn decode_flo(bytes: &[u8]) -> Result<FlowImage, FloFormatError> {
             ]
         })
         .collect();
+    if let Some(i) = data
+        .iter()
+        .position(|v| !(v[0].is_finite() && v[1].is_finite()))
+    {
+        return Err(FloFormatError::NonFinite {
+            x: i % width,
+            y: i / width,
+        });
+    }
     // The sides are checked and the length matched, so this cannot fail.
     Image::from_vec(width, height, data).map_err(|_| FloFormatError::Length {
         width,
@@ -638,7 +739,7 @@ pub fn read_flo_in(files: &impl Files, path: &Path) -> Result<FlowImage, ImageIo
 /// Writes a Middlebury `.flo` file atomically.
 ///
 /// # Errors
-/// An image side above [`FLO_MAX_SIDE`] (or zero), or I/O errors, naming `path`.
+/// An image side above [`FLO_MAX_SIDE_PX`] (or zero), or I/O errors, naming `path`.
 pub fn write_flo(path: &Path, flow: &FlowImage) -> Result<(), ImageIoError> {
     let bytes =
         encode_flo(flow).map_err(|e| ImageIoError::new(path, ImageProblem::CorruptFlo(e)))?;
@@ -665,6 +766,73 @@ mod tests {
             .collect();
         names.sort();
         names
+    }
+
+    /// A real 1x1 16-bit grey PNG whose header is patched to declare `width x height`
+    /// (the IHDR checksum redone, so the decoder accepts the header).
+    fn png_declaring(width: u32, height: u32) -> Vec<u8> {
+        fn crc32(bytes: &[u8]) -> u32 {
+            let mut crc = !0u32;
+            for &b in bytes {
+                crc ^= u32::from(b);
+                for _ in 0..8 {
+                    crc = if crc & 1 == 1 {
+                        (crc >> 1) ^ 0xEDB8_8320
+                    } else {
+                        crc >> 1
+                    };
+                }
+            }
+            !crc
+        }
+        let mut png = encode_png(Path::new("x"), &[0, 0], (1, 1), ExtendedColorType::L16).unwrap();
+        png[16..20].copy_from_slice(&width.to_be_bytes());
+        png[20..24].copy_from_slice(&height.to_be_bytes());
+        let crc = crc32(&png[12..29]);
+        png[29..33].copy_from_slice(&crc.to_be_bytes());
+        png
+    }
+
+    #[test]
+    fn a_header_declaring_a_huge_or_wrong_size_is_refused_before_decoding() {
+        let dir = temp_dir("huge");
+        let huge = dir.join("huge.png");
+        fs::write(&huge, png_declaring(100_000, 100_000)).unwrap();
+        let e = read_gray16(&huge).unwrap_err();
+        assert!(
+            matches!(
+                e.problem,
+                ImageProblem::TooManyPixels { width: 100_000, .. }
+            ),
+            "{e}"
+        );
+        assert!(
+            e.to_string().starts_with(&huge.display().to_string()),
+            "{e}"
+        );
+        // Within the cap but not the camera's size: refused from the header alone (the
+        // file holds one pixel of data, so decoding would fail differently).
+        let wrong = dir.join("wrong.png");
+        fs::write(&wrong, png_declaring(640, 480)).unwrap();
+        let e = read_sized(&wrong, 320, 240, read_gray16).unwrap_err();
+        assert!(
+            matches!(e.problem, ImageProblem::WrongSize { width: 640, .. }),
+            "{e}"
+        );
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn sizes_are_checked_and_views_lend_the_pixels() {
+        assert!(Gray8Image::from_vec(3, 2, vec![0; 5]).is_err());
+        assert!(Gray8Image::from_vec(usize::MAX, 2, Vec::new()).is_err());
+        let img = Gray16Image::from_fn(3, 2, |x, y| (10 * y + x) as u16);
+        let view = img.view();
+        assert_eq!(view.size(), (3, 2));
+        assert_eq!(view.get(2, 1), Some(&12));
+        assert_eq!(view.get(3, 0), None);
+        assert_eq!(img.get(1, 1), Some(&11));
+        assert!(core::ptr::eq(view.row(0).unwrap(), &img.as_slice()[..3]));
     }
 
     #[test]
@@ -858,6 +1026,13 @@ mod tests {
             decode_flo(&huge),
             Err(FloFormatError::BadSize { .. })
         ));
+        // NaN in pixel (1, 2) of the 4-wide flow: vector 9, its dy at byte 12 + 9 * 8 + 4.
+        let mut nan = b.clone();
+        nan[12 + 9 * 8 + 4..][..4].copy_from_slice(&f32::NAN.to_le_bytes());
+        assert_eq!(
+            decode_flo(&nan),
+            Err(FloFormatError::NonFinite { x: 1, y: 2 })
+        );
         let mut neg = b.clone();
         neg[8..12].copy_from_slice(&(-3i32).to_le_bytes());
         assert!(matches!(

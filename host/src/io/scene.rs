@@ -7,7 +7,8 @@
 //!     scene_camera.json   {"width": 640, "height": 480, "fx": 615.0, "fy": 615.0,
 //!                          "cx": 319.5, "cy": 239.5, "depth_unit_m": 0.001}
 //!     rgb/000000.png      8-bit RGB; frame t = the scene after t pushes (000000 = initial)
-//!     depth/000000.png    16-bit, depth_unit_m units (millimetres), 0 = no reading
+//!     depth/000000.png    16-bit, depth_unit_m units (millimetres), 0 = no reading,
+//!                          65535 = saturated (no reading either)
 //!     label/000000.png    16-bit instance ids, 0 = table/background (optional: ground truth)
 //!     flow/000000.flo     forward flow from frame t to t+1 (optional: ground truth), Middlebury
 //!     actions.json        [{"push": 1, "start_px": [u, v], "start_cam_m": [x, y, z],
@@ -22,13 +23,19 @@
 //! Contract of [`Scene::read`] (the folder may come from any tool, not only riseg), and of
 //! [`Scene::read_in`], the same reader over files held in memory ([`crate::io::files`]):
 //! - `scene_camera.json` and `rgb/` are required; there must be at least one frame.
-//!   Frames are named with six digits from `000000` without gaps; other files are ignored
-//!   (unknown JSON fields too).
+//!   Frames are named with six digits from `000000` without gaps; other files are ignored.
+//!   A JSON file with an unknown or a missing field is an error naming the field.
+//! - The camera is a camera: at most [`MAX_IMAGE_PIXELS`] pixels, focal lengths from 1/20 to
+//!   100 times the longer side, the principal point on the image, a depth unit in (0, 1] m.
+//!   A PNG is checked against the camera's size from its header, before it is decoded.
 //! - `depth/` holds exactly as many frames as `rgb/`, all 16-bit (8-bit depth is refused);
 //!   `label/` is optional, and when present holds as many frames as `rgb/` (8- or 16-bit);
 //!   `flow/` is optional, and when present holds one `.flo` per push (frames − 1).
 //! - `actions.json` holds one entry per push, numbered `1, 2, …` in order. It may be absent
-//!   only when the scene has a single frame (no pushes).
+//!   only when the scene has a single frame (no pushes). Each push has a non-zero direction
+//!   and a length in (0, 1] m.
+//! - [`Scene::read_frames`] reads only `scene_camera.json`, `rgb/` and `depth/`, for
+//!   replaying (`riseg run`): files it does not use cannot stop it.
 //! - `poses.json` is optional; when present it holds one list per frame (`frames[t]` = after
 //!   `t` pushes) of object poses: labels from 1, each once per frame, finite numbers, and
 //!   quaternions of norm within [`POSE_QUATERNION_TOLERANCE`] of 1 (normalised on reading
@@ -54,8 +61,8 @@ use serde::{Deserialize, Serialize};
 use super::write_atomic;
 use crate::io::files::{DiskFiles, Files};
 use crate::io::image::{
-    FlowImage, Gray16Image, Image, ImageIoError, RgbImage, read_flo_in, read_gray_widened_in,
-    read_gray16_in, read_rgb8_in, write_flo, write_gray16, write_rgb8,
+    FlowImage, Gray16Image, Image, ImageIoError, MAX_IMAGE_PIXELS, RgbImage, read_flo_in,
+    read_gray_widened_in, read_gray16_in, read_rgb8_in, write_flo, write_gray16, write_rgb8,
 };
 
 /// Intrinsics file name.
@@ -80,11 +87,12 @@ pub const HEAT_DIR: &str = "heat";
 
 /// `scene_camera.json`: colour intrinsics (depth is aligned to colour) and the depth unit.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SceneCamera {
     /// Image width, pixels.
-    pub width: u32,
+    pub width: usize,
     /// Image height, pixels.
-    pub height: u32,
+    pub height: usize,
     /// Focal length along x, pixels.
     pub fx: f32,
     /// Focal length along y, pixels.
@@ -109,10 +117,15 @@ impl SceneCamera {
         }
     }
 
-    /// Converts a depth-image value to metres (`0` stays `0.0`: no reading).
+    /// Converts a depth-image value to metres. `0` (no return) and `65535` (saturated: the
+    /// true depth is beyond what 16 bits hold) are no reading and become `0.0`.
     #[must_use]
     pub fn depth_m(&self, raw: u16) -> f32 {
-        f32::from(raw) * self.depth_unit_m
+        if raw == u16::MAX {
+            0.0
+        } else {
+            f32::from(raw) * self.depth_unit_m
+        }
     }
 
     /// Reads and checks a camera file (`scene_camera.json`), on its own: for tools that
@@ -157,10 +170,35 @@ impl SceneCamera {
                 self.fx, self.fy
             ));
         }
-        if self.depth_unit_m <= 0.0 {
+        if self.depth_unit_m <= 0.0 || self.depth_unit_m > 1.0 {
             return Some(format!(
-                "depth_unit_m must be positive, found {}",
+                "depth_unit_m must be in (0, 1] metres, found {}",
                 self.depth_unit_m
+            ));
+        }
+        if self.width.saturating_mul(self.height) > MAX_IMAGE_PIXELS {
+            return Some(format!(
+                "image size {}x{} is more than the {MAX_IMAGE_PIXELS} pixels riseg reads",
+                self.width, self.height
+            ));
+        }
+        // A horizontal field of view between about 1 and 170 degrees, and the principal
+        // point on the image: anything else is a unit mistake (metres for pixels, a
+        // normalised camera matrix), not a camera.
+        let (w, h) = (self.width as f32, self.height as f32);
+        let side = w.max(h);
+        let fov_ok = |f: f32| f >= side / 20.0 && f <= 100.0 * side;
+        if !fov_ok(self.fx) || !fov_ok(self.fy) {
+            return Some(format!(
+                "focal lengths fx {} and fy {} pixels do not fit a {}x{} camera \
+                 (expected 1/20 to 100 times the longer side)",
+                self.fx, self.fy, self.width, self.height
+            ));
+        }
+        if !(0.0..=w).contains(&self.cx) || !(0.0..=h).contains(&self.cy) {
+            return Some(format!(
+                "principal point ({}, {}) lies off the {}x{} image",
+                self.cx, self.cy, self.width, self.height
             ));
         }
         None
@@ -172,6 +210,7 @@ impl SceneCamera {
 /// Everything is in the colour camera's frame (x right, y down, z forward), so a scene
 /// needs no hand-eye calibration to be read.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct PushAction {
     /// Push number, from 1.
     pub push: u32,
@@ -218,6 +257,7 @@ pub struct ObjectPose {
 
 /// One entry of `poses.json`.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 struct PoseRecord {
     label: u16,
     translation_m: [f32; 3],
@@ -226,6 +266,7 @@ struct PoseRecord {
 
 /// `poses.json`: `frames[t]` = the poses after `t` pushes.
 #[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 struct PosesFile {
     frames: Vec<Vec<PoseRecord>>,
 }
@@ -499,11 +540,13 @@ fn read_json<T: serde::de::DeserializeOwned>(
 }
 
 fn read_sized<T>(
+    files: &impl Files,
     path: &Path,
     camera: &SceneCamera,
     read: impl Fn(&Path) -> Result<Image<T>, ImageIoError>,
 ) -> Result<Image<T>, SceneError> {
-    Ok(crate::io::image::read_sized(
+    Ok(crate::io::image::read_sized_in(
+        files,
         path,
         camera.width,
         camera.height,
@@ -541,6 +584,22 @@ fn check_actions(path: &Path, actions: &[PushAction], pushes: usize) -> Result<(
                 format!("push {} has a non-finite value", a.push),
             ));
         }
+        if !(a.length_m > 0.0 && a.length_m <= 1.0) {
+            return Err(invalid(
+                path,
+                format!(
+                    "push {} has \"length_m\": {}, expected more than 0 and at most 1 metre",
+                    a.push, a.length_m
+                ),
+            ));
+        }
+        let [dx, dy, dz] = a.direction_cam;
+        if libm::sqrtf(dx * dx + dy * dy + dz * dz) < 1e-6 {
+            return Err(invalid(
+                path,
+                format!("push {} has a zero \"direction_cam\"", a.push),
+            ));
+        }
     }
     Ok(())
 }
@@ -557,7 +616,7 @@ impl Scene {
     /// # Errors
     /// A [`SceneError`] naming the first file or folder that breaks a rule.
     pub fn read(dir: &Path) -> Result<Self, SceneError> {
-        Self::read_in(&DiskFiles, dir)
+        Self::read_parts(&DiskFiles, dir, true)
     }
 
     /// [`Scene::read`] of the folder `dir` in `files`: the same rules and messages, for a
@@ -566,6 +625,21 @@ impl Scene {
     /// # Errors
     /// As [`Scene::read`].
     pub fn read_in(files: &impl Files, dir: &Path) -> Result<Self, SceneError> {
+        Self::read_parts(files, dir, true)
+    }
+
+    /// Reads and checks only what replaying a scene needs: the camera, colour and depth.
+    /// `label/`, `flow/`, `actions.json` and `poses.json` are neither read nor checked
+    /// (`labels`, `flow` and `poses` are `None`, `actions` empty), so a problem in a file
+    /// the caller does not use cannot stop it.
+    ///
+    /// # Errors
+    /// As [`Scene::read`], for those files.
+    pub fn read_frames(dir: &Path) -> Result<Self, SceneError> {
+        Self::read_parts(&DiskFiles, dir, false)
+    }
+
+    fn read_parts(files: &impl Files, dir: &Path, everything: bool) -> Result<Self, SceneError> {
         if !files.is_dir(dir) {
             return Err(SceneError::Missing {
                 path: dir.to_path_buf(),
@@ -589,7 +663,7 @@ impl Scene {
         check_frames(&depth_dir, "png", &depth_numbers, per_frame)?;
 
         let label_dir = dir.join(LABEL_DIR);
-        let has_labels = match frame_numbers(files, &label_dir, "png")? {
+        let has_labels = match frame_numbers(files, &label_dir, "png")?.filter(|_| everything) {
             Some(numbers) => {
                 check_frames(&label_dir, "png", &numbers, per_frame)?;
                 true
@@ -597,7 +671,7 @@ impl Scene {
             None => false,
         };
         let flow_dir = dir.join(FLOW_DIR);
-        let has_flow = match frame_numbers(files, &flow_dir, "flo")? {
+        let has_flow = match frame_numbers(files, &flow_dir, "flo")?.filter(|_| everything) {
             Some(numbers) => {
                 check_frames(&flow_dir, "flo", &numbers, Some((n - 1, "one per push")))?;
                 true
@@ -606,15 +680,16 @@ impl Scene {
         };
 
         let actions_path = dir.join(ACTIONS_FILE);
-        let actions: Vec<PushAction> = if n == 1 && !files.is_file(&actions_path) {
+        let actions: Vec<PushAction> = if !everything || (n == 1 && !files.is_file(&actions_path)) {
             Vec::new()
         } else {
-            read_json(files, &actions_path)?
+            let actions: Vec<PushAction> = read_json(files, &actions_path)?;
+            check_actions(&actions_path, &actions, n - 1)?;
+            actions
         };
-        check_actions(&actions_path, &actions, n - 1)?;
 
         let poses_path = dir.join(POSES_FILE);
-        let poses = if files.is_file(&poses_path) {
+        let poses = if everything && files.is_file(&poses_path) {
             Some(read_poses(files, &poses_path, n)?)
         } else {
             None
@@ -623,14 +698,14 @@ impl Scene {
         let frame = |sub: &Path, t: usize, ext: &str| sub.join(frame_file_name(t, ext));
         let rgb = (0..n)
             .map(|t| {
-                read_sized(&frame(&rgb_dir, t, "png"), &camera, |p| {
+                read_sized(files, &frame(&rgb_dir, t, "png"), &camera, |p| {
                     read_rgb8_in(files, p)
                 })
             })
             .collect::<Result<Vec<_>, _>>()?;
         let depth = (0..n)
             .map(|t| {
-                read_sized(&frame(&depth_dir, t, "png"), &camera, |p| {
+                read_sized(files, &frame(&depth_dir, t, "png"), &camera, |p| {
                     read_gray16_in(files, p)
                 })
             })
@@ -639,7 +714,7 @@ impl Scene {
             Some(
                 (0..n)
                     .map(|t| {
-                        read_sized(&frame(&label_dir, t, "png"), &camera, |p| {
+                        read_sized(files, &frame(&label_dir, t, "png"), &camera, |p| {
                             read_gray_widened_in(files, p)
                         })
                     })
@@ -652,7 +727,7 @@ impl Scene {
             Some(
                 (0..n - 1)
                     .map(|t| {
-                        read_sized(&frame(&flow_dir, t, "flo"), &camera, |p| {
+                        read_sized(files, &frame(&flow_dir, t, "flo"), &camera, |p| {
                             read_flo_in(files, p)
                         })
                     })
@@ -683,9 +758,9 @@ impl Scene {
             return Err(invalid(&dir.join(RGB_DIR), "no frames"));
         }
         let (w, h) = (self.camera.width, self.camera.height);
-        let sizes_ok = |sub: &str, count: usize, dims: &mut dyn Iterator<Item = (u32, u32)>| {
+        let sizes_ok = |sub: &str, count: usize, dims: &mut dyn Iterator<Item = (usize, usize)>| {
             let path = dir.join(sub);
-            let dims: Vec<(u32, u32)> = dims.collect();
+            let dims: Vec<(usize, usize)> = dims.collect();
             if dims.len() != count {
                 return Err(invalid(
                     &path,

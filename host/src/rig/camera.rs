@@ -33,7 +33,7 @@ impl CameraFrame {
     /// `(width, height)` of the colour image, pixels.
     #[must_use]
     pub fn size(&self) -> (usize, usize) {
-        (self.rgb.width() as usize, self.rgb.height() as usize)
+        self.rgb.size()
     }
 
     /// This frame with its static segmentation (row-major, the frame's size) as the motion

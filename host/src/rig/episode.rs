@@ -121,9 +121,11 @@ where
     let mut pushes = Vec::new();
     let mut t = 0;
     loop {
-        let captured = camera.capture()?;
-        let observation = tracker.observe(captured.clone())?;
-        let frame = &captured;
+        // The tracker keeps the frame (its next step's previous one) and lends it back.
+        let observation = tracker.observe(camera.capture()?)?;
+        let frame = tracker
+            .last_frame()
+            .expect("a successful observe keeps its frame");
         let action = find_action_on(frame, &observation, &cfg, &mut action_buf)
             .map_err(EpisodeError::Action)?;
         let decision = decide(&mut state, &cfg, &action, robot, setup);
@@ -175,8 +177,8 @@ pub fn find_action_on(
     let (w, h) = frame.size();
     let scratch = buf.get_or_insert_with(|| ActionBuf::new(cfg, w, h));
     find_action(
-        &ImageView::packed(w, h, &observation.static_seg.heatmap)?,
-        &ImageView::packed(w, h, frame.depth_m.as_slice())?,
+        &observation.static_seg.heatmap.view(),
+        &frame.depth_m.view(),
         &ImageView::packed(w, h, &observation.mask)?,
         &frame.intrinsics,
         cfg,

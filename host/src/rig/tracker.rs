@@ -36,7 +36,8 @@ use riseg_core::{
 };
 
 use crate::{
-    flow::{DisFlow, Flow, FlowError, FlowEstimator, FlowParams, RgbView},
+    flow::{DisFlow, FlowError, FlowEstimator, FlowParams},
+    io::image::FlowImage,
     rig::camera::CameraFrame,
     rig::workspace::WorkspaceBuf,
     segment::{ClassicalSegmenter, SegmentError, Segmentation, SegmenterParams, StaticSegmenter},
@@ -112,7 +113,7 @@ pub struct GivenInputs {
     pub static_seg: Option<Segmentation>,
     /// The flow from the previous frame's colour image to this one's, instead of the
     /// tracker's estimator; NaN where unknown.
-    pub flow: Option<Flow>,
+    pub flow: Option<FlowImage>,
 }
 
 /// Milliseconds each stage of one frame took (zero for stages that did not run, such as
@@ -167,7 +168,7 @@ pub struct GroupedFrame {
 #[derive(Debug, Clone)]
 pub struct StepDetail {
     /// Flow from the previous colour image to this one.
-    pub flow: Flow,
+    pub flow: FlowImage,
     /// The core's report, stage by stage.
     pub report: StepReport,
     /// The body frames of the step with their groups.
@@ -255,7 +256,8 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
         self.previous = None;
     }
 
-    /// The last frame observed, if any.
+    /// The last frame observed, if any: after [`Tracker::observe`] returns `Ok`, the frame
+    /// it was given (lent back, so the caller need not keep a copy).
     #[must_use]
     pub fn last_frame(&self) -> Option<&CameraFrame> {
         self.previous.as_ref().map(|p| &p.frame)
@@ -289,10 +291,7 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
         given: GivenInputs,
     ) -> Result<Observation, TrackError> {
         let (w, h) = frame.size();
-        let depth_size = (
-            frame.depth_m.width() as usize,
-            frame.depth_m.height() as usize,
-        );
+        let depth_size = frame.depth_m.size();
         if depth_size != (w, h) {
             return Err(TrackError::FrameSize {
                 expected: depth_size,
@@ -321,7 +320,7 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
             }
         };
         if let Some(seg) = &given.static_seg {
-            given_size("static segmentation", (seg.width, seg.height))?;
+            given_size("static segmentation", seg.size())?;
         }
         if let Some(flow) = &given.flow {
             given_size("flow", (flow.width(), flow.height()))?;
@@ -341,7 +340,7 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
         };
 
         let Some(prev) = &self.previous else {
-            let mask = static_seg.labels.clone();
+            let mask = static_seg.labels.as_slice().to_vec();
             self.previous = Some(Previous {
                 frame,
                 mask: mask.clone(),
@@ -358,10 +357,9 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
             Some(flow) => flow,
             None => {
                 let clock = Stopwatch::start();
-                let flow = self.flow.estimate(
-                    RgbView::new(w, h, prev.frame.rgb.as_slice().as_flattened())?,
-                    RgbView::new(w, h, frame.rgb.as_slice().as_flattened())?,
-                )?;
+                let flow = self
+                    .flow
+                    .estimate(prev.frame.rgb.view(), frame.rgb.view())?;
                 times.flow_ms = clock.ms();
                 flow
             }
@@ -374,12 +372,12 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
         let ws = self.workspace.insert((ws_w, ws_h, ws));
         let input = MotionInput::new(
             ImageView::packed(w, h, &prev.mask)?,
-            ImageView::packed(w, h, prev.frame.depth_m.as_slice())?,
-            ImageView::packed(w, h, frame.depth_m.as_slice())?,
-            ImageView::packed(w, h, flow.as_slice())?,
+            prev.frame.depth_m.view(),
+            frame.depth_m.view(),
+            flow.view(),
             frame.intrinsics,
         )?;
-        let static_t1 = ImageView::packed(w, h, &static_seg.labels)?;
+        let static_t1 = static_seg.labels.view();
         let mut mask = vec![0u16; w * h];
         let mut view = ws.2.view();
         let mut stage_clock = Stopwatch::start();

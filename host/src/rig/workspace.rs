@@ -3,6 +3,9 @@
 //! allocation per step). riseg-core itself never allocates; this is the convenience for
 //! callers with a heap.
 
+// Spelled out (not the prelude's) because riseg-core's no_std tests compile this file too.
+use std::{vec, vec::Vec};
+
 use riseg_core::{
     Config, Pose, Real, Twist,
     action::{ActionScratch, ActionScratchLen},

@@ -29,6 +29,7 @@ use super::{
     heat::{HeatInput, HeatScratch, heatmap},
     plane::{PlaneScratch, TablePlane, fit_table},
 };
+use crate::io::image::Image;
 
 /// Heat of background points just under the object threshold (see [`heat`](super::heat)).
 const TABLE_HEAT_MAX: f32 = 100.0;
@@ -199,10 +200,8 @@ impl ClassicalSegmenter {
         );
         Ok(ClassicalOutput {
             segmentation: Segmentation {
-                width: w,
-                height: h,
-                labels,
-                heatmap: heat,
+                labels: Image::from_vec(w, h, labels).expect("one label per pixel"),
+                heatmap: Image::from_vec(w, h, heat).expect("one heat value per pixel"),
             },
             plane: table.plane,
         })

@@ -30,6 +30,8 @@ pub mod viz;
 
 use riseg_core::Intrinsics;
 
+use crate::io::image::{Gray8Image, Gray16Image};
+
 pub use classical::{ClassicalOutput, ClassicalSegmenter};
 pub use params::SegmenterParams;
 pub use plane::TablePlane;
@@ -189,21 +191,29 @@ impl<'a> RgbdFrame<'a> {
 /// A static segmentation: instance labels and the FindAction heatmap, same size as the frame.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Segmentation {
-    /// Width, pixels.
-    pub width: usize,
-    /// Height, pixels.
-    pub height: usize,
-    /// Instance labels, row-major: `0` background, `1..=n` segments (consecutive).
-    pub labels: Vec<u16>,
-    /// Objectness/uncertainty heatmap, row-major, 0-255 (see the module docs for the bands).
-    pub heatmap: Vec<u8>,
+    /// Instance labels: `0` background, `1..=n` segments (consecutive).
+    pub labels: Gray16Image,
+    /// Objectness/uncertainty heatmap, 0-255 (see the module docs for the bands), the
+    /// labels' size.
+    pub heatmap: Gray8Image,
 }
 
 impl Segmentation {
+    /// `(width, height)`, pixels.
+    #[must_use]
+    pub const fn size(&self) -> (usize, usize) {
+        self.labels.size()
+    }
+
     /// Number of segments (the largest label).
     #[must_use]
     pub fn segment_count(&self) -> usize {
-        self.labels.iter().copied().max().map_or(0, usize::from)
+        self.labels
+            .as_slice()
+            .iter()
+            .copied()
+            .max()
+            .map_or(0, usize::from)
     }
 }
 

@@ -6,6 +6,7 @@
 //! (certain).
 
 use super::{HEAT_CERTAIN, HEAT_UNCERTAIN, Segmentation};
+use crate::io::image::{Image, RgbImage};
 
 pub use crate::draw::label_colour;
 
@@ -22,22 +23,19 @@ pub fn heat_colour(v: u8) -> [u8; 3] {
     }
 }
 
-/// `rgb | labels | heatmap` as one `3·width × height` RGB image (row-major). `rgb` must
-/// hold `width·height` pixels; missing pixels are drawn black.
+/// `rgb | labels | heatmap` as one `3·width × height` image. Pixels `rgb` (or a
+/// mis-sized heatmap) lacks are drawn black.
 #[must_use]
-pub fn side_by_side(rgb: &[[u8; 3]], seg: &Segmentation) -> Vec<[u8; 3]> {
-    let w = seg.width;
-    let mut out = Vec::with_capacity(3 * w * seg.height);
-    for y in 0..seg.height {
-        let row = y * w..(y + 1) * w;
-        let colour = rgb.get(row.clone());
-        out.extend((0..w).map(|x| colour.map_or([0; 3], |c| c[x])));
-        let labels = seg.labels.get(row.clone()).unwrap_or(&[]);
-        out.extend((0..w).map(|x| label_colour(labels.get(x).copied().unwrap_or(0))));
-        let heat = seg.heatmap.get(row).unwrap_or(&[]);
-        out.extend((0..w).map(|x| heat_colour(heat.get(x).copied().unwrap_or(0))));
-    }
-    out
+pub fn side_by_side(rgb: &RgbImage, seg: &Segmentation) -> RgbImage {
+    let (w, h) = seg.size();
+    Image::from_fn(3 * w, h, |x, y| {
+        let (panel, x) = (x / w, x % w);
+        match panel {
+            0 => rgb.get(x, y).copied().unwrap_or([0; 3]),
+            1 => label_colour(seg.labels.get(x, y).copied().unwrap_or(0)),
+            _ => heat_colour(seg.heatmap.get(x, y).copied().unwrap_or(0)),
+        }
+    })
 }
 
 #[cfg(test)]
@@ -47,13 +45,14 @@ mod tests {
     #[test]
     fn picture_is_three_panels_and_bands_have_their_colours() {
         let seg = Segmentation {
-            width: 2,
-            height: 1,
-            labels: vec![0, 1],
-            heatmap: vec![10, 200],
+            labels: Image::from_vec(2, 1, vec![0, 1]).unwrap(),
+            heatmap: Image::from_vec(2, 1, vec![10, 200]).unwrap(),
         };
-        let out = side_by_side(&[[9, 9, 9], [8, 8, 8]], &seg);
-        assert_eq!(out.len(), 6);
+        let rgb = Image::from_vec(2, 1, vec![[9, 9, 9], [8, 8, 8]]).unwrap();
+        let out = side_by_side(&rgb, &seg);
+        assert_eq!(out.size(), (6, 1));
+        let out = out.as_slice();
+        assert_eq!(out[0], [9, 9, 9]);
         assert_eq!(out[2], [0, 0, 0]);
         assert_ne!(out[3], [0, 0, 0]);
         assert_eq!(heat_colour(130)[0], 255);

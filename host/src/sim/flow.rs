@@ -8,7 +8,7 @@ use crate::io::image::{DepthImage, FlowImage, Gray16Image, Image};
 
 /// Flow value stored where a moved point falls behind the camera (Middlebury's
 /// "unknown" convention: any component above 1e9). It does not occur on a tabletop.
-pub const UNKNOWN_FLOW: f32 = 1e10;
+pub const UNKNOWN_FLOW_PX: f32 = 1e10;
 
 /// The forward flow from frame `t` to frame `t + 1` caused by the objects' motion.
 ///
@@ -59,9 +59,9 @@ pub fn ground_truth_flow(
     }
 
     let (lab, depth) = (labels.as_slice(), true_depth_m.as_slice());
-    let width = labels.width() as usize;
+    let width = labels.width();
     Ok(Image::from_fn(labels.width(), labels.height(), |x, y| {
-        let i = y as usize * width + x as usize;
+        let i = y * width + x;
         let (z, m) = (depth[i], motion[usize::from(lab[i])]);
         match m {
             Some(m) if z > 0.0 => {
@@ -69,7 +69,7 @@ pub fn ground_truth_flow(
                 let p: Point3<f32> = m * intrinsics.back_project(u, v, z);
                 intrinsics
                     .project(&p)
-                    .map_or([UNKNOWN_FLOW; 2], |q| [q.x - u, q.y - v])
+                    .map_or([UNKNOWN_FLOW_PX; 2], |q| [q.x - u, q.y - v])
             }
             _ => [0.0, 0.0],
         }

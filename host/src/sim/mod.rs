@@ -60,7 +60,7 @@ use riseg_core::{Intrinsics, Pose, rng::Pcg32};
 /// frame. Defined with the scene folder format, which stores it (`poses.json`).
 pub use crate::io::scene::ObjectPose;
 pub use devices::{ARM_MAX_PUSH_LEN_M, ARM_MAX_TOOL_HEIGHT_M, SimCamera, SimRig, SimRobot};
-pub use flow::{UNKNOWN_FLOW, ground_truth_flow};
+pub use flow::{UNKNOWN_FLOW_PX, ground_truth_flow};
 pub use layout::{Layout, ObjectShape};
 pub use seed::{MAX_SCENE_ATTEMPTS, Seeded, attempt_seed, first_usable_seed, scene_seed};
 
@@ -94,9 +94,9 @@ pub const PUSHER_MAX_TRAVEL_M: f32 = 0.3;
 #[non_exhaustive]
 pub struct SimConfig {
     /// Image width, pixels.
-    pub width: u32,
+    pub width: usize,
     /// Image height, pixels.
-    pub height: u32,
+    pub height: usize,
     /// Colour intrinsics (depth is rendered aligned to colour).
     pub intrinsics: Intrinsics,
     /// Height of the camera centre above the table, metres.
@@ -237,9 +237,9 @@ pub enum SimError {
     #[error("labels are {}x{} but depth is {}x{}", labels.0, labels.1, depth.0, depth.1)]
     SizeMismatch {
         /// Label image size.
-        labels: (u32, u32),
+        labels: (usize, usize),
         /// Depth image size.
-        depth: (u32, u32),
+        depth: (usize, usize),
     },
     /// A label in the image has no object pose.
     #[error("label {0} has no object pose")]

@@ -48,8 +48,8 @@ pub(crate) struct Surface<'a> {
 /// Sensor noise and camera geometry of one render.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Sensor {
-    pub width: u32,
-    pub height: u32,
+    pub width: usize,
+    pub height: usize,
     pub intrinsics: Intrinsics,
     /// Translation in centimetres.
     pub world_from_camera_cm: GlamPose,
@@ -143,7 +143,7 @@ fn shade(surface: &Surface<'_>, point: GlamVec, normal: GlamVec) -> [f32; 3] {
 
 /// Renders the surfaces as the sensor sees them.
 pub(crate) fn render(surfaces: &[Surface<'_>], sensor: &Sensor, noise_seed: u64) -> Rendered {
-    let (w, h) = (sensor.width as usize, sensor.height as usize);
+    let (w, h) = (sensor.width, sensor.height);
     let aabbs: Vec<_> = surfaces
         .iter()
         .map(|s| s.shape.compute_aabb(&s.world_from_surface_cm))
@@ -231,7 +231,7 @@ pub(crate) fn render(surfaces: &[Surface<'_>], sensor: &Sensor, noise_seed: u64)
         });
 
     // Every buffer holds width·height pixels, so these indices are in range.
-    let at = |x: u32, y: u32| y as usize * w + x as usize;
+    let at = |x: usize, y: usize| y * w + x;
     Rendered {
         rgb: Image::from_fn(sensor.width, sensor.height, |x, y| hits[at(x, y)].rgb),
         labels: Image::from_fn(sensor.width, sensor.height, |x, y| hits[at(x, y)].label),

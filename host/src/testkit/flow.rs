@@ -15,7 +15,10 @@
 //! the image border in the first image, and likewise around the target position in the
 //! second image, on the same layer (so not occluded).
 
-use crate::flow::{Flow, GrayF32, RgbView};
+use riseg_core::ImageView;
+
+use crate::flow::luma;
+use crate::io::image::{FlowImage, Image, RgbImage};
 use crate::par::*;
 use riseg_core::rng::Pcg32;
 
@@ -136,16 +139,12 @@ pub struct FlowScene {
 /// Two 8-bit RGB images and the exact flow from the first to the second.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FlowPair {
-    /// Image width, pixels.
-    pub width: usize,
-    /// Image height, pixels.
-    pub height: usize,
-    /// First image, interleaved RGB, row-major.
-    pub first: Vec<u8>,
-    /// Second image, interleaved RGB, row-major.
-    pub second: Vec<u8>,
+    /// First image.
+    pub first: RgbImage,
+    /// Second image, the first's size.
+    pub second: RgbImage,
     /// Exact flow at every first-image pixel centre.
-    pub flow: Flow,
+    pub flow: FlowImage,
     /// Layer of every first-image pixel: 0 background, `k` the `k`-th object (1-based).
     pub labels: Vec<u16>,
     /// Pixels whose flow is well defined for an estimator (see the module docs).
@@ -155,34 +154,26 @@ pub struct FlowPair {
 impl FlowPair {
     /// The first image as a view.
     #[must_use]
-    pub fn first_view(&self) -> RgbView<'_> {
-        RgbView {
-            width: self.width,
-            height: self.height,
-            data: &self.first,
-        }
+    pub fn first_view(&self) -> ImageView<'_, [u8; 3]> {
+        self.first.view()
     }
 
     /// The second image as a view.
     #[must_use]
-    pub fn second_view(&self) -> RgbView<'_> {
-        RgbView {
-            width: self.width,
-            height: self.height,
-            data: &self.second,
-        }
+    pub fn second_view(&self) -> ImageView<'_, [u8; 3]> {
+        self.second.view()
     }
 
     /// The first image's luma.
     #[must_use]
-    pub fn first_gray(&self) -> GrayF32 {
-        GrayF32::from_rgb(self.first_view())
+    pub fn first_gray(&self) -> Image<f32> {
+        luma(self.first_view())
     }
 
     /// The second image's luma.
     #[must_use]
-    pub fn second_gray(&self) -> GrayF32 {
-        GrayF32::from_rgb(self.second_view())
+    pub fn second_gray(&self) -> Image<f32> {
+        luma(self.second_view())
     }
 
     /// Pixels on objects (label > 0), moving or not.
@@ -301,14 +292,19 @@ impl FlowScene {
         }
     }
 
-    fn render_image(&self, textures: &[Texture], second: bool) -> Vec<u8> {
+    fn render_image(&self, textures: &[Texture], second: bool) -> RgbImage {
         let w = self.width;
-        let mut out = vec![0u8; 3 * w * self.height];
-        if w == 0 {
-            return out;
+        let mut out = vec![[0u8; 3]; w * self.height];
+        if w > 0 {
+            self.render_rows(textures, second, &mut out);
         }
-        out.par_chunks_mut(3 * w).enumerate().for_each(|(y, row)| {
-            for (x, px) in row.chunks_exact_mut(3).enumerate() {
+        Image::from_vec(w, self.height, out).expect("one pixel per position")
+    }
+
+    fn render_rows(&self, textures: &[Texture], second: bool, out: &mut [[u8; 3]]) {
+        let w = self.width;
+        out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            for (x, px) in row.iter_mut().enumerate() {
                 let mut acc = [0.0f32; 3];
                 for (sx, sy) in [(-0.25, -0.25), (0.25, -0.25), (-0.25, 0.25), (0.25, 0.25)] {
                     let (fx, fy) = (x as f32 + sx, y as f32 + sy);
@@ -324,7 +320,6 @@ impl FlowScene {
                 }
             }
         });
-        out
     }
 
     fn labels(&self, second: bool) -> Vec<u16> {
@@ -383,15 +378,9 @@ impl FlowScene {
             })
             .collect();
         FlowPair {
-            width: w,
-            height: h,
             first,
             second,
-            flow: Flow {
-                width: w,
-                height: h,
-                data: flow,
-            },
+            flow: Image::from_vec(w, h, flow).expect("one vector per pixel"),
             labels,
             interior,
         }
@@ -563,8 +552,8 @@ mod tests {
         let (w, mut same, mut n) = (64, 0, 0);
         for y in 2..46 {
             for x in 0..61 {
-                let a = &p.first[3 * (y * w + x)..][..3];
-                let b = &p.second[3 * ((y - 2) * w + x + 3)..][..3];
+                let a = p.first.as_slice()[y * w + x];
+                let b = p.second.as_slice()[(y - 2) * w + x + 3];
                 same += usize::from(a == b);
                 n += 1;
             }

@@ -185,7 +185,10 @@ mod tests {
         let frame = RgbdFrame::new(w, h, &t.rgb, &t.depth_m).unwrap();
         let mut seg = ClassicalSegmenter::new(SegmenterParams::default()).unwrap();
         let out = seg.segment_detailed(&frame, &t.intrinsics).unwrap();
-        let (labels, heat) = (&out.segmentation.labels, &out.segmentation.heatmap);
+        let (labels, heat) = (
+            out.segmentation.labels.as_slice(),
+            out.segmentation.heatmap.as_slice(),
+        );
 
         // The table is background and below l_l.
         let table: Vec<usize> = interior(&t, 0, 3);

@@ -25,14 +25,18 @@ if [ "$status" -ne 0 ]; then
   exit 1
 fi
 
-# Flash: what is loaded at 0 (vector table, code, constants, .data's initial values);
-# RAM: .data + .bss + .uninit. The stack grows down from the top of RAM and is not counted.
-size -A "$elf" | awk '
+# Flash: what is loaded at 0 (vector table, code, constants, .data's initial values).
+# RAM: .data + .bss + .uninit from the ELF, plus the stack's deepest use the firmware read.
+stack="$(sed -n 's/^stack: \([0-9]*\) bytes.*/\1/p' "$log")"
+size -A "$elf" | awk -v stack="${stack:-0}" -v map="$elf.map" '
   $1 == ".vector_table" || $1 == ".text" || $1 == ".rodata" { flash += $2 }
   $1 == ".data" { flash += $2; ram += $2 }
   $1 == ".bss" || $1 == ".uninit" { ram += $2 }
-  END { printf "flash %d bytes, RAM %d bytes static (+ stack) [size -A; map: %s]\n", flash, ram, map }
-' map="${elf}.map"
+  END {
+    printf "flash %d bytes; RAM %d bytes = %d static (.data+.bss+.uninit) + %d stack\n",
+      flash, ram + stack, ram, stack
+    printf "(size -A on the ELF; linker map: %s)\n", map
+  }'
 
 firmware="$(grep -E '^input [0-9a-f]{16} output [0-9a-f]{16}$' "$log" || true)"
 native="$(cd native && CARGO_TARGET_DIR="$target/native" cargo run --release --quiet)"

@@ -4,9 +4,10 @@
 //! Runs under `qemu-system-arm -M mps2-an386 -icount shift=0` with semihosting (see
 //! `run.sh`): renders the testkit's touching-boxes step with riseg-core's `synth`, runs
 //! [`update_mask`] with [`Config::PAPER`] over a [`Workspace`] of `static` arrays sized by
-//! [`WorkspaceLen::for_config`], and prints the input and output digests (same definition
-//! and format as `determinism/`), the step report's counts, the instructions each part
-//! took (see [`clock`]) and the workspace size. Exits 0 on success and 1 on any error.
+//! [`WorkspaceLen::for_config`], and prints the input and output digests (the line
+//! `native/` prints for the same step computed with `riseg`'s testkit), the step report's
+//! counts, the instructions each part took (see [`clock`]), the workspace size and the
+//! deepest stack use (see [`stack`]). Exits 0 on success and 1 on any error.
 
 #![no_std]
 #![no_main]
@@ -14,6 +15,7 @@
 mod clock;
 mod digest;
 mod scene;
+mod stack;
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
@@ -240,7 +242,7 @@ fn step(
 }
 
 fn print_result(images: &StepImages<'_>, labels_t1: &[u16], report: &StepReport, counts: &Counts) {
-    // The same line `determinism/` prints natively: run.sh compares them.
+    // The line `native/` prints: run.sh compares them.
     hprintln!(
         "input {:016x} output {:016x}",
         digest::input(
@@ -280,6 +282,7 @@ fn print_result(images: &StepImages<'_>, labels_t1: &[u16], report: &StepReport,
         mask.saturating_sub(grouping),
         counts.scene
     );
+    hprintln!("stack: {} bytes at its deepest", stack::high_water_bytes());
 }
 
 /// Ends the QEMU run through semihosting with exit status 0 or 1.

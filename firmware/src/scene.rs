@@ -28,7 +28,7 @@ pub struct StepImages<'a> {
 /// The testkit's camera: D415-like, focal length scaled to the width.
 ///
 /// # Errors
-/// [`Error::BadConfig`]-class errors of [`Intrinsics::new`] for a degenerate size.
+/// Those of [`Intrinsics::new`] (a zero width gives a zero focal length).
 pub fn intrinsics(width: usize, height: usize) -> Result<Intrinsics, Error> {
     let f = 615.0 * width as f32 / 640.0;
     Intrinsics::new(

@@ -31,7 +31,7 @@ use riseg_core::ImageView;
 use super::write_atomic;
 
 use image::{
-    DynamicImage, ExtendedColorType, ImageEncoder,
+    DynamicImage, ExtendedColorType, ImageDecoder as _, ImageEncoder,
     codecs::png::{CompressionType, FilterType, PngDecoder, PngEncoder},
 };
 
@@ -215,6 +215,20 @@ pub enum ImageProblem {
         /// Height in the file.
         height: usize,
     },
+    /// The PNG header declares an image that decodes to more than
+    /// [`PNG_MAX_DECODED_BYTES`].
+    #[error(
+        "header declares {width}x{height} pixels ({bytes} bytes decoded), more than the \
+         {PNG_MAX_DECODED_BYTES}-byte limit"
+    )]
+    TooLarge {
+        /// Width in the header.
+        width: u32,
+        /// Height in the header.
+        height: u32,
+        /// Decoded size, bytes.
+        bytes: u64,
+    },
     /// An image to write has a side beyond what a PNG can hold (`u32`).
     #[error("a {width}x{height} image is too large for a PNG")]
     TooLargeForPng {
@@ -280,10 +294,30 @@ fn read_bytes(path: &Path) -> Result<Vec<u8>, ImageIoError> {
     fs::read(path).map_err(|e| ImageIoError::io(path, e))
 }
 
+/// Largest decoded size a PNG header may declare, bytes (512 MiB, the `image` crate's
+/// default allocation limit; a 640x480 16-bit depth image is 0.6 MB). Checked before
+/// anything of that size is allocated, so a small file declaring a huge image is an error,
+/// not an out-of-memory abort; the decoder's own buffers are bounded by it too.
+pub const PNG_MAX_DECODED_BYTES: u64 = 512 << 20;
+
 fn decode_png(path: &Path) -> Result<DynamicImage, ImageIoError> {
     let file = fs::File::open(path).map_err(|e| ImageIoError::io(path, e))?;
     let corrupt = |e| ImageIoError::new(path, ImageProblem::CorruptPng(e));
-    let decoder = PngDecoder::new(BufReader::new(file)).map_err(corrupt)?;
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(PNG_MAX_DECODED_BYTES);
+    let decoder = PngDecoder::with_limits(BufReader::new(file), limits).map_err(corrupt)?;
+    let bytes = decoder.total_bytes();
+    if bytes > PNG_MAX_DECODED_BYTES {
+        let (width, height) = decoder.dimensions();
+        return Err(ImageIoError::new(
+            path,
+            ImageProblem::TooLarge {
+                width,
+                height,
+                bytes,
+            },
+        ));
+    }
     DynamicImage::from_decoder(decoder).map_err(corrupt)
 }
 
@@ -686,6 +720,66 @@ mod tests {
         // Overwriting replaces the file whole.
         write_gray16(&dir.join("d.png"), &Gray16Image::from_fn(2, 2, |_, _| 7)).unwrap();
         assert_eq!(read_gray16(&dir.join("d.png")).unwrap().as_slice(), [7; 4]);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Found by the `png_read` fuzz target (and issue 15, defect 2): a 68-byte PNG whose
+    /// header declares 100000x100000 pixels made every reader allocate the declared size
+    /// first (an out-of-memory abort). Now it is an error naming the file, for each reader.
+    #[test]
+    fn a_header_declaring_a_huge_image_is_an_error_not_an_allocation() {
+        fn crc32(bytes: &[u8]) -> u32 {
+            let mut c = !0u32;
+            for &b in bytes {
+                c ^= u32::from(b);
+                for _ in 0..8 {
+                    c = if c & 1 == 1 {
+                        0xEDB8_8320 ^ (c >> 1)
+                    } else {
+                        c >> 1
+                    };
+                }
+            }
+            !c
+        }
+        let dir = temp_dir("huge-header");
+        let path = dir.join("huge.png");
+        write_gray16(&path, &Gray16Image::from_fn(1, 1, |_, _| 600)).unwrap();
+        let mut bytes = fs::read(&path).unwrap();
+        // IHDR: length at 8, type at 12, width and height at 16 and 20, CRC at 29.
+        assert_eq!(&bytes[12..16], b"IHDR");
+        bytes[16..20].copy_from_slice(&100_000u32.to_be_bytes());
+        bytes[20..24].copy_from_slice(&100_000u32.to_be_bytes());
+        let crc = crc32(&bytes[12..29]);
+        bytes[29..33].copy_from_slice(&crc.to_be_bytes());
+        fs::write(&path, &bytes).unwrap();
+        type Reader = fn(&Path) -> Result<(), ImageIoError>;
+        let readers: [Reader; 5] = [
+            |p| read_rgb8(p).map(drop),
+            |p| read_png_as_rgb8(p).map(drop),
+            |p| read_gray16(p).map(drop),
+            |p| read_gray8(p).map(drop),
+            |p| read_gray_widened(p).map(drop),
+        ];
+        for read in readers {
+            let e = read(&path).unwrap_err();
+            assert!(
+                matches!(
+                    e.problem,
+                    ImageProblem::TooLarge {
+                        width: 100_000,
+                        height: 100_000,
+                        bytes: 20_000_000_000
+                    }
+                ),
+                "{e}"
+            );
+            assert!(
+                e.to_string()
+                    .contains("huge.png: header declares 100000x100000"),
+                "{e}"
+            );
+        }
         fs::remove_dir_all(&dir).unwrap();
     }
 

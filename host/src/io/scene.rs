@@ -121,7 +121,16 @@ impl SceneCamera {
     /// [`SceneError::Invalid`] for an empty size, non-finite values, a non-positive focal
     /// length or depth unit.
     pub fn read(path: &Path) -> Result<Self, SceneError> {
-        let camera: Self = read_json(path)?;
+        Self::from_json(path, &read_file(path)?)
+    }
+
+    /// Parses and checks the contents of a camera file; `path` only names the file in
+    /// errors. [`SceneCamera::read`] is this after reading the file.
+    ///
+    /// # Errors
+    /// [`SceneError::Json`] or [`SceneError::Invalid`] as for [`SceneCamera::read`].
+    pub fn from_json(path: &Path, bytes: &[u8]) -> Result<Self, SceneError> {
+        let camera: Self = parse_json(path, bytes)?;
         match camera.problem() {
             Some(reason) => Err(invalid(path, reason)),
             None => Ok(camera),
@@ -300,9 +309,17 @@ fn poses_problem(poses: &[Vec<ObjectPose>], frames: usize) -> Option<String> {
     None
 }
 
-/// Reads and checks `poses.json` of a `frames`-frame scene.
-fn read_poses(path: &Path, frames: usize) -> Result<Vec<Vec<ObjectPose>>, SceneError> {
-    let file: PosesFile = read_json(path)?;
+/// Parses and checks the contents of `poses.json` of a `frames`-frame scene (the rules are
+/// in the module docs); `path` only names the file in errors.
+///
+/// # Errors
+/// [`SceneError::Json`] for malformed JSON, [`SceneError::Invalid`] for a rule broken.
+pub fn poses_from_json(
+    path: &Path,
+    bytes: &[u8],
+    frames: usize,
+) -> Result<Vec<Vec<ObjectPose>>, SceneError> {
+    let file: PosesFile = parse_json(path, bytes)?;
     let poses = file
         .frames
         .iter()
@@ -471,9 +488,12 @@ fn check_frames(
     Ok(count)
 }
 
-fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SceneError> {
-    let text = fs::read(path).map_err(|e| io_error(path, e))?;
-    serde_json::from_slice(&text).map_err(|source| SceneError::Json {
+fn read_file(path: &Path) -> Result<Vec<u8>, SceneError> {
+    fs::read(path).map_err(|e| io_error(path, e))
+}
+
+fn parse_json<T: serde::de::DeserializeOwned>(path: &Path, bytes: &[u8]) -> Result<T, SceneError> {
+    serde_json::from_slice(bytes).map_err(|source| SceneError::Json {
         path: path.to_path_buf(),
         source,
     })
@@ -490,6 +510,21 @@ fn read_sized<T>(
         camera.height,
         read,
     )?)
+}
+
+/// Parses and checks the contents of `actions.json` of a scene with `pushes` pushes (the
+/// rules are in the module docs); `path` only names the file in errors.
+///
+/// # Errors
+/// [`SceneError::Json`] for malformed JSON, [`SceneError::Invalid`] for a rule broken.
+pub fn actions_from_json(
+    path: &Path,
+    bytes: &[u8],
+    pushes: usize,
+) -> Result<Vec<PushAction>, SceneError> {
+    let actions: Vec<PushAction> = parse_json(path, bytes)?;
+    check_actions(path, &actions, pushes)?;
+    Ok(actions)
 }
 
 fn check_actions(path: &Path, actions: &[PushAction], pushes: usize) -> Result<(), SceneError> {
@@ -577,16 +612,15 @@ impl Scene {
         };
 
         let actions_path = dir.join(ACTIONS_FILE);
-        let actions: Vec<PushAction> = if n == 1 && !actions_path.exists() {
+        let actions = if n == 1 && !actions_path.exists() {
             Vec::new()
         } else {
-            read_json(&actions_path)?
+            actions_from_json(&actions_path, &read_file(&actions_path)?, n - 1)?
         };
-        check_actions(&actions_path, &actions, n - 1)?;
 
         let poses_path = dir.join(POSES_FILE);
         let poses = if poses_path.exists() {
-            Some(read_poses(&poses_path, n)?)
+            Some(poses_from_json(&poses_path, &read_file(&poses_path)?, n)?)
         } else {
             None
         };

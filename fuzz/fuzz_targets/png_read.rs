@@ -9,7 +9,10 @@
 
 #![no_main]
 
-use std::{path::PathBuf, sync::OnceLock};
+use std::{
+    path::{Path, PathBuf},
+    sync::OnceLock,
+};
 
 use libfuzzer_sys::fuzz_target;
 use riseg::io::image::{
@@ -20,31 +23,32 @@ use riseg::io::image::{
 /// Largest image that is also written and read back (writing costs a compression).
 const ROUND_TRIP_MAX_PX: usize = 1 << 16;
 
-fn scratch_dir() -> &'static PathBuf {
-    static DIR: OnceLock<PathBuf> = OnceLock::new();
-    DIR.get_or_init(|| {
-        let base = if std::path::Path::new("/dev/shm").is_dir() {
-            PathBuf::from("/dev/shm")
+/// A file of this process on tmpfs (`/dev/shm`, else the temporary folder); the target
+/// removes its files at the end of every run, so nothing is left behind.
+fn scratch(name: &str) -> PathBuf {
+    static BASE: OnceLock<PathBuf> = OnceLock::new();
+    let base = BASE.get_or_init(|| {
+        let shm = PathBuf::from("/dev/shm");
+        let dir = if shm.is_dir() {
+            shm
         } else {
             std::env::temp_dir()
         };
-        let dir = base.join(format!("riseg-fuzz-png-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("scratch folder");
-        dir
-    })
+        dir.join(format!("riseg-fuzz-png-{}", std::process::id()))
+    });
+    let mut path = base.clone().into_os_string();
+    path.push(format!("-{name}"));
+    path.into()
 }
 
-fuzz_target!(|data: &[u8]| {
-    let dir = scratch_dir();
-    let input = dir.join("input.png");
-    std::fs::write(&input, data).expect("write to tmpfs");
-    let _ = read_png_as_rgb8(&input);
-    let _ = read_gray8(&input);
-    let _ = read_gray_widened(&input);
-    if let Ok(image) = read_gray16(&input) {
+fn check(input: &Path) {
+    let _ = read_png_as_rgb8(input);
+    let _ = read_gray8(input);
+    let _ = read_gray_widened(input);
+    if let Ok(image) = read_gray16(input) {
         assert!(image.width() > 0 && image.height() > 0);
         if image.as_slice().len() <= ROUND_TRIP_MAX_PX {
-            let out = dir.join("gray16.png");
+            let out = scratch("gray16.png");
             write_gray16(&out, &image).expect("write a decoded 16-bit image");
             assert!(
                 read_gray16(&out).expect("read back") == image,
@@ -52,15 +56,24 @@ fuzz_target!(|data: &[u8]| {
             );
         }
     }
-    if let Ok(image) = read_rgb8(&input) {
+    if let Ok(image) = read_rgb8(input) {
         assert!(image.width() > 0 && image.height() > 0);
         if image.as_slice().len() <= ROUND_TRIP_MAX_PX {
-            let out = dir.join("rgb8.png");
+            let out = scratch("rgb8.png");
             write_rgb8(&out, &image).expect("write a decoded RGB image");
             assert!(
                 read_rgb8(&out).expect("read back") == image,
                 "RGB round trip"
             );
         }
+    }
+}
+
+fuzz_target!(|data: &[u8]| {
+    let input = scratch("input.png");
+    std::fs::write(&input, data).expect("write to tmpfs");
+    check(&input);
+    for name in ["input.png", "gray16.png", "rgb8.png"] {
+        let _ = std::fs::remove_file(scratch(name));
     }
 });

@@ -12,6 +12,7 @@ use std::{
 };
 
 use riseg::io::image::{Gray8Image, Gray16Image, read_gray16, write_gray8, write_gray16};
+use riseg::testkit::png::png_declaring;
 
 fn riseg() -> Command {
     Command::new(env!("CARGO_BIN_EXE_riseg"))
@@ -106,33 +107,6 @@ fn assert_fails(case: &str, out: &Output, code: i32, needles: &[&str]) -> String
         );
     }
     stderr
-}
-
-fn png_declaring(width: u32, height: u32) -> Vec<u8> {
-    // A real 1x1 16-bit PNG written by riseg, its IHDR size patched and checksum redone.
-    let dir = tempfile::tempdir().expect("test setup");
-    let path = dir.path().join("one.png");
-    write_gray16(
-        &path,
-        &Gray16Image::from_vec(1, 1, vec![0]).expect("test setup"),
-    )
-    .expect("test setup");
-    let mut png = fs::read(&path).expect("test setup");
-    png[16..20].copy_from_slice(&width.to_be_bytes());
-    png[20..24].copy_from_slice(&height.to_be_bytes());
-    let mut crc = !0u32;
-    for &b in &png[12..29] {
-        crc ^= u32::from(b);
-        for _ in 0..8 {
-            crc = if crc & 1 == 1 {
-                (crc >> 1) ^ 0xEDB8_8320
-            } else {
-                crc >> 1
-            };
-        }
-    }
-    png[29..33].copy_from_slice(&(!crc).to_be_bytes());
-    png
 }
 
 /// Replaces frame 0's depth with one value everywhere.

@@ -119,11 +119,16 @@ pub fn is_known_flow(v: [f32; 2]) -> bool {
 #[must_use]
 pub fn luma(rgb: ImageView<'_, [u8; 3]>) -> Image<f32> {
     let (width, height) = rgb.size();
-    Image::from_fn(width, height, |x, y| {
-        rgb.get(x, y).map_or(0.0, |p| {
-            0.299 * f32::from(p[0]) + 0.587 * f32::from(p[1]) + 0.114 * f32::from(p[2])
-        })
-    })
+    let mut data = Vec::with_capacity(width.saturating_mul(height));
+    // Row by row: a view's rows are contiguous, its stride may not be the width.
+    for row in (0..height).filter_map(|y| rgb.row(y)) {
+        data.extend(
+            row.iter().map(|p| {
+                0.299 * f32::from(p[0]) + 0.587 * f32::from(p[1]) + 0.114 * f32::from(p[2])
+            }),
+        );
+    }
+    Image::from_vec(width, height, data).expect("a view has height rows of width pixels")
 }
 
 /// Flow-specific operations on the owned flow image ([`FlowImage`]).

@@ -768,36 +768,11 @@ mod tests {
         names
     }
 
-    /// A real 1x1 16-bit grey PNG whose header is patched to declare `width x height`
-    /// (the IHDR checksum redone, so the decoder accepts the header).
-    fn png_declaring(width: u32, height: u32) -> Vec<u8> {
-        fn crc32(bytes: &[u8]) -> u32 {
-            let mut crc = !0u32;
-            for &b in bytes {
-                crc ^= u32::from(b);
-                for _ in 0..8 {
-                    crc = if crc & 1 == 1 {
-                        (crc >> 1) ^ 0xEDB8_8320
-                    } else {
-                        crc >> 1
-                    };
-                }
-            }
-            !crc
-        }
-        let mut png = encode_png(Path::new("x"), &[0, 0], (1, 1), ExtendedColorType::L16).unwrap();
-        png[16..20].copy_from_slice(&width.to_be_bytes());
-        png[20..24].copy_from_slice(&height.to_be_bytes());
-        let crc = crc32(&png[12..29]);
-        png[29..33].copy_from_slice(&crc.to_be_bytes());
-        png
-    }
-
     #[test]
     fn a_header_declaring_a_huge_or_wrong_size_is_refused_before_decoding() {
         let dir = temp_dir("huge");
         let huge = dir.join("huge.png");
-        fs::write(&huge, png_declaring(100_000, 100_000)).unwrap();
+        fs::write(&huge, crate::testkit::png::png_declaring(100_000, 100_000)).unwrap();
         let e = read_gray16(&huge).unwrap_err();
         assert!(
             matches!(
@@ -813,7 +788,7 @@ mod tests {
         // Within the cap but not the camera's size: refused from the header alone (the
         // file holds one pixel of data, so decoding would fail differently).
         let wrong = dir.join("wrong.png");
-        fs::write(&wrong, png_declaring(640, 480)).unwrap();
+        fs::write(&wrong, crate::testkit::png::png_declaring(640, 480)).unwrap();
         let e = read_sized(&wrong, 320, 240, read_gray16).unwrap_err();
         assert!(
             matches!(e.problem, ImageProblem::WrongSize { width: 640, .. }),

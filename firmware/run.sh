@@ -2,9 +2,11 @@
 # Bare-metal riseg-core (issue 17): builds the firmware for thumbv7em-none-eabihf with
 # Debian's rustc-web and build-std=core (no alloc: no heap can be linked), runs it under
 # qemu-system-arm -M mps2-an386 (Cortex-M4F) with -icount shift=0 and semihosting, prints
-# its output and the flash and RAM the ELF needs, then runs the native twin (native/) and
-# fails unless both print the same input and output digests.
-# Set CARGO_TARGET_DIR to build elsewhere; QEMU_TIMEOUT (seconds) bounds the run.
+# its output and the flash and RAM the ELF needs, then runs the same step natively
+# (../determinism, riseg's testkit scene and heap workspace) and fails unless both print
+# the same input and output digests.
+# Set CARGO_TARGET_DIR to build elsewhere, NATIVE_TARGET_DIR for determinism/'s build
+# (default: $CARGO_TARGET_DIR/native); QEMU_TIMEOUT (seconds) bounds the run.
 set -euo pipefail
 cd "$(dirname "$0")"
 target="$(realpath -m "${CARGO_TARGET_DIR:-target}")"
@@ -39,7 +41,8 @@ size -A "$elf" | awk -v stack="${stack:-0}" -v map="$elf.map" '
   }'
 
 firmware="$(grep -E '^input [0-9a-f]{16} output [0-9a-f]{16}$' "$log" || true)"
-native="$(cd native && CARGO_TARGET_DIR="$target/native" cargo run --release --quiet)"
+native_target="$(realpath -m "${NATIVE_TARGET_DIR:-$target/native}")"
+native="$(cd ../determinism && CARGO_TARGET_DIR="$native_target" cargo run --release --quiet)"
 printf 'firmware: %s\nnative:   %s\n' "${firmware:-<no digest line>}" "$native"
 if [ -z "$firmware" ] || [ "$firmware" != "$native" ]; then
   echo "firmware: digests differ from the native run" >&2

@@ -8,6 +8,14 @@ use nalgebra::{Point3, Vector2};
 
 use crate::{Error, math::Real};
 
+/// Smallest focal length accepted, pixels. A numerical bound, not a physical one: with
+/// pixel offsets up to [`MAX_CAMERA_PX`] and depth up to
+/// [`MAX_DEPTH_M`](crate::image::MAX_DEPTH_M), every back-projected coordinate stays below
+/// about 1e10 m, so sums over a whole image stay finite in `f32`.
+pub const MIN_FOCAL_PX: Real = 0.01;
+/// Largest focal length or principal-point offset accepted, pixels.
+pub const MAX_CAMERA_PX: Real = 1.0e6;
+
 /// Pinhole intrinsics in pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Intrinsics {
@@ -26,7 +34,8 @@ impl Intrinsics {
     ///
     /// # Errors
     /// [`Error::NonFinite`] if a value is not finite; [`Error::BadConfig`] if a focal
-    /// length is not positive.
+    /// length is outside [[`MIN_FOCAL_PX`], [`MAX_CAMERA_PX`]] or the principal point is
+    /// further than [`MAX_CAMERA_PX`] from the origin.
     pub fn new(fx: Real, fy: Real, cx: Real, cy: Real) -> Result<Self, Error> {
         let k = Self { fx, fy, cx, cy };
         k.check()?;
@@ -44,7 +53,9 @@ impl Intrinsics {
         {
             return Err(Error::NonFinite);
         }
-        if self.fx <= 0.0 || self.fy <= 0.0 {
+        let focal_ok = |f: Real| (MIN_FOCAL_PX..=MAX_CAMERA_PX).contains(&f);
+        let centre_ok = |c: Real| c.abs() <= MAX_CAMERA_PX;
+        if !(focal_ok(self.fx) && focal_ok(self.fy) && centre_ok(self.cx) && centre_ok(self.cy)) {
             return Err(Error::BadConfig);
         }
         Ok(())
@@ -90,6 +101,17 @@ mod tests {
     #[test]
     fn bad_intrinsics_are_errors() {
         assert_eq!(Intrinsics::new(0.0, 1.0, 0.0, 0.0), Err(Error::BadConfig));
+        // A focal length of 1e-37 px would send back-projected points past f32's range.
+        assert_eq!(
+            Intrinsics::new(1e-37, 1e-37, 0.0, 0.0),
+            Err(Error::BadConfig)
+        );
+        assert_eq!(Intrinsics::new(1.0, 2e6, 0.0, 0.0), Err(Error::BadConfig));
+        assert_eq!(
+            Intrinsics::new(615.0, 615.0, -2e6, 0.0),
+            Err(Error::BadConfig)
+        );
+        assert!(Intrinsics::new(MIN_FOCAL_PX, MAX_CAMERA_PX, -MAX_CAMERA_PX, 0.0).is_ok());
         assert_eq!(
             Intrinsics::new(f32::NAN, 1.0, 0.0, 0.0),
             Err(Error::NonFinite)

@@ -559,7 +559,8 @@ fn posterior_table(hist: &[[u32; KDE_BINS]; 2], cfg: &Config) -> ([Real; KDE_BIN
 /// Gaussian KDE on bins `[from, to)` of a histogram (other bins count zero).
 fn smooth(hist: &[Real; KDE_BINS], sigma_bins: Real, from: usize, to: usize) -> [Real; KDE_BINS] {
     let sigma = sigma_bins.max(0.5);
-    let reach = (3.0 * sigma) as usize + 1;
+    // `as` saturates (an infinite sigma gives usize::MAX), so the `+ 1` must too.
+    let reach = ((3.0 * sigma) as usize).saturating_add(1);
     let mut kernel = [0.0 as Real; KDE_BINS];
     for (d, k) in kernel.iter_mut().enumerate().take(reach.min(KDE_BINS)) {
         let x = d as Real / sigma;
@@ -621,6 +622,20 @@ mod tests {
 
     use super::*;
     use crate::{Pose, frames::BodyFrame, rng::Pcg32};
+
+    /// Found by the `update_mask` fuzz target: a valid config whose bandwidth is many
+    /// orders above the bin width (`kde_range_m` tiny) made `reach` overflow (a panic in
+    /// debug builds; in release a wrapped reach of 0 zeroed the whole density). A kernel
+    /// far wider than the histogram spreads every count evenly.
+    #[test]
+    fn smoothing_with_a_huge_bandwidth_spreads_counts_evenly() {
+        let mut hist = [0.0; KDE_BINS];
+        hist[3] = 2.0;
+        for sigma_bins in [1e30, Real::MAX, Real::INFINITY] {
+            let out = smooth(&hist, sigma_bins, 0, KDE_BINS);
+            assert!(out.iter().all(|&v| v == 2.0), "sigma {sigma_bins}: {out:?}");
+        }
+    }
 
     #[test]
     fn scratch_len_is_exact_or_saturates_never_wraps() {

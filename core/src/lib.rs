@@ -28,7 +28,7 @@ extern crate self as riseg_core;
 #[path = "../../host/src/rig/workspace.rs"]
 mod test_workspace;
 
-pub use camera::Intrinsics;
+pub use camera::{Intrinsics, MAX_CAMERA_PX, MIN_FOCAL_PX};
 pub use error::{Buffer, Error};
 pub use image::{ImageView, ImageViewMut};
 pub use math::Real;

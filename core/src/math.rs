@@ -40,3 +40,15 @@ pub(crate) fn floor(x: Real) -> Real {
 pub(crate) fn ln(x: Real) -> Real {
     libm::logf(x)
 }
+
+/// `x = m · 2^e` with `|m|` in `[0.5, 1)` (`(x, 0)` for zero, infinities and NaN).
+#[inline]
+pub(crate) fn frexp(x: Real) -> (Real, i32) {
+    libm::frexpf(x)
+}
+
+/// `x · 2^n`, exact unless the result underflows or overflows.
+#[inline]
+pub(crate) fn scalbn(x: Real, n: i32) -> Real {
+    libm::scalbnf(x, n)
+}

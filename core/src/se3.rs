@@ -17,7 +17,7 @@ use nalgebra::{
     Isometry3, Matrix3, Point3, Quaternion, Rotation3, Translation3, UnitQuaternion, Vector3,
 };
 
-use crate::math::{Real, atan2, sin_cos, sqrt};
+use crate::math::{Real, atan2, frexp, scalbn, sin_cos, sqrt};
 
 /// A rigid transform `a_from_b`.
 pub type Pose = Isometry3<Real>;
@@ -213,12 +213,15 @@ pub fn try_frame_from_points(
     p1: &Point3<Real>,
     p2: &Point3<Real>,
 ) -> Option<Pose> {
-    let a = p1 - p0;
-    let b = p2 - p0;
+    // Each side is scaled by a power of two (exact) so its squares neither underflow nor
+    // overflow: the axes are those of the unscaled sides, for sides of any finite length.
+    let a = scaled_to_unit_range(&(p1 - p0))?;
+    let b = scaled_to_unit_range(&(p2 - p0))?;
     let (na, nb) = (a.norm(), b.norm());
     let n = a.cross(&b);
     let nn = n.norm();
-    if !(na > 0.0 && nb > 0.0 && nn.is_finite() && nn > MIN_FRAME_SIN * na * nb) {
+    // Finite: both sides are, with components below 1 in magnitude.
+    if nn <= MIN_FRAME_SIN * na * nb {
         return None;
     }
     let x = a / na;
@@ -229,6 +232,18 @@ pub fn try_frame_from_points(
         Translation3::from(p0.coords),
         UnitQuaternion::from_rotation_matrix(&rot),
     ))
+}
+
+/// `v · 2^k` for the `k` that brings its largest component into `[0.5, 1)` in magnitude;
+/// `None` if `v` is zero or not finite. The scale is exact (barring components below that
+/// one by more than 2¹²⁶), so directions computed from the result are those of `v`.
+fn scaled_to_unit_range(v: &Vector3<Real>) -> Option<Vector3<Real>> {
+    let largest = v.amax();
+    if !(largest > 0.0 && v.iter().all(|c| c.is_finite())) {
+        return None;
+    }
+    let (_, e) = frexp(largest);
+    Some(v.map(|c| scalbn(c, -e)))
 }
 
 #[cfg(test)]
@@ -316,6 +331,28 @@ mod tests {
             )
             .is_none()
         );
+    }
+
+    /// Found by the `frame_from_points` fuzz target: sides of 1e-10 m gave a rotation whose
+    /// x axis missed `p1 − p0` (the cross product's squared norm underflowed), and sides
+    /// beyond 1e19 m gave no frame (the squares overflowed).
+    #[test]
+    fn frame_of_tiny_or_huge_triangles_is_the_frame_of_the_same_shape() {
+        let (p0, p1, p2) = (
+            Point3::new(1.0f32, 1.0, 1.0),
+            Point3::new(2.0, 1.5, 1.0),
+            Point3::new(1.2, 3.0, 1.7),
+        );
+        let unit = try_frame_from_points(&p0, &p1, &p2).unwrap();
+        // Scaling by a power of two is exact, so the frame's rotation must be bit-identical.
+        for k in [-60, -40, 70, 100] {
+            let s = libm::scalbnf(1.0, k);
+            let scaled = |p: Point3<Real>| Point3::from(p.coords * s);
+            let f = try_frame_from_points(&scaled(p0), &scaled(p1), &scaled(p2))
+                .unwrap_or_else(|| panic!("no frame at scale 2^{k}"));
+            assert_eq!(f.rotation, unit.rotation, "scale 2^{k}");
+            assert_eq!(f.translation.vector, p0.coords * s);
+        }
     }
 
     #[test]

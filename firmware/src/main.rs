@@ -5,7 +5,7 @@
 //! `run.sh`): renders the testkit's touching-boxes step with riseg-core's `synth`, runs
 //! [`update_mask`] with [`Config::PAPER`] over a [`Workspace`] of `static` arrays sized by
 //! [`WorkspaceLen::for_config`], and prints the input and output digests (the line
-//! `native/` prints for the same step computed with `riseg`'s testkit), the step report's
+//! `determinism/` prints for the same step computed natively with `riseg`'s testkit), the step report's
 //! counts, the instructions each part took (see [`clock`]), the workspace size and the
 //! deepest stack use (see [`stack`]). Exits 0 on success and 1 on any error.
 
@@ -13,6 +13,7 @@
 #![no_main]
 
 mod clock;
+#[path = "../../determinism/src/digest.rs"]
 mod digest;
 mod scene;
 mod stack;
@@ -242,7 +243,7 @@ fn step(
 }
 
 fn print_result(images: &StepImages<'_>, labels_t1: &[u16], report: &StepReport, counts: &Counts) {
-    // The line `native/` prints: run.sh compares them.
+    // The line `determinism/` prints natively: run.sh compares them.
     hprintln!(
         "input {:016x} output {:016x}",
         digest::input(

@@ -5,6 +5,7 @@ extern crate std;
 use std::{vec, vec::Vec};
 
 use super::*;
+use crate::camera::{MAX_CAMERA_PX, MIN_FOCAL_PX};
 use crate::math::{round, sqrt};
 use crate::test_workspace::ActionBuf;
 
@@ -779,9 +780,20 @@ fn random_inputs_never_panic_and_respect_the_capacity() {
         let depth: Vec<Real> = (0..w * h)
             .map(|_| specials[rng.below(specials.len() as u32) as usize])
             .collect();
-        let fx = [1e-6, 1.0, 300.0, 1e9][rng.below(4) as usize];
-        let k = Intrinsics::new(fx, fx, w as Real / 2.0, h as Real / 2.0).unwrap();
-        let report = run(w, h, &heat, &depth, &k, &cfg).unwrap();
+        // Fields set directly, past the checked range too: those are refused, not a panic.
+        let fx = [1e-6, MIN_FOCAL_PX, 1.0, 300.0, MAX_CAMERA_PX, 1e9][rng.below(6) as usize];
+        let k = Intrinsics {
+            fx,
+            fy: fx,
+            cx: w as Real / 2.0,
+            cy: h as Real / 2.0,
+        };
+        let result = run(w, h, &heat, &depth, &k, &cfg);
+        if k.check().is_err() {
+            assert_eq!(result.err(), Some(Error::BadConfig));
+            continue;
+        }
+        let report = result.unwrap();
         assert!(report.certain().len() <= cfg.max_clusters);
         assert!(report.uncertain().len() <= cfg.max_clusters);
         if let Some(push) = report.push() {

@@ -196,7 +196,8 @@ pub fn image_metrics(
     width: usize,
     height: usize,
 ) -> Result<ImageMetrics, MetricsError> {
-    let expected = width * height;
+    // Saturating: no slice holds usize::MAX labels, so an overflowing size is a mismatch.
+    let expected = width.saturating_mul(height);
     for (map, labels) in [("ground-truth", gt), ("predicted", pred)] {
         if labels.len() != expected {
             return Err(MetricsError::SizeMismatch {
@@ -993,6 +994,20 @@ mod tests {
             }
         );
         assert!(err.to_string().contains("predicted label map has 5 values"));
+    }
+
+    /// Found by the `image_metrics` fuzz target: `width · height` overflowed (a panic in
+    /// debug builds; in release a wrapped product of 0 accepted empty maps as a 2³²×2³²
+    /// image).
+    #[test]
+    fn a_size_whose_pixel_count_overflows_is_a_mismatch() {
+        for (width, height) in [(usize::MAX, 2), (1 << 32, 1 << 32)] {
+            let err = image_metrics(&[], &[], width, height).unwrap_err();
+            assert!(
+                matches!(err, MetricsError::SizeMismatch { got: 0, .. }),
+                "{width}x{height}: {err:?}"
+            );
+        }
     }
 
     #[test]

@@ -144,7 +144,16 @@ impl SceneCamera {
     /// # Errors
     /// As [`SceneCamera::read`].
     pub fn read_in(files: &impl Files, path: &Path) -> Result<Self, SceneError> {
-        let camera: Self = read_json(files, path)?;
+        Self::from_json(path, &files.read(path).map_err(|e| io_error(path, e))?)
+    }
+
+    /// Parses and checks the contents of a camera file; `path` only names the file in
+    /// errors. [`SceneCamera::read`] is this after reading the file.
+    ///
+    /// # Errors
+    /// [`SceneError::Json`] or [`SceneError::Invalid`] as for [`SceneCamera::read`].
+    pub fn from_json(path: &Path, bytes: &[u8]) -> Result<Self, SceneError> {
+        let camera: Self = parse_json(path, bytes)?;
         match camera.problem() {
             Some(reason) => Err(invalid(path, reason)),
             None => Ok(camera),
@@ -351,13 +360,17 @@ fn poses_problem(poses: &[Vec<ObjectPose>], frames: usize) -> Option<String> {
     None
 }
 
-/// Reads and checks `poses.json` of a `frames`-frame scene.
-fn read_poses(
-    files: &impl Files,
+/// Parses and checks the contents of `poses.json` of a `frames`-frame scene (the rules are
+/// in the module docs); `path` only names the file in errors.
+///
+/// # Errors
+/// [`SceneError::Json`] for malformed JSON, [`SceneError::Invalid`] for a rule broken.
+pub fn poses_from_json(
     path: &Path,
+    bytes: &[u8],
     frames: usize,
 ) -> Result<Vec<Vec<ObjectPose>>, SceneError> {
-    let file: PosesFile = read_json(files, path)?;
+    let file: PosesFile = parse_json(path, bytes)?;
     let poses = file
         .frames
         .iter()
@@ -528,12 +541,8 @@ fn check_frames(
     Ok(count)
 }
 
-fn read_json<T: serde::de::DeserializeOwned>(
-    files: &impl Files,
-    path: &Path,
-) -> Result<T, SceneError> {
-    let text = files.read(path).map_err(|e| io_error(path, e))?;
-    serde_json::from_slice(&text).map_err(|source| SceneError::Json {
+fn parse_json<T: serde::de::DeserializeOwned>(path: &Path, bytes: &[u8]) -> Result<T, SceneError> {
+    serde_json::from_slice(bytes).map_err(|source| SceneError::Json {
         path: path.to_path_buf(),
         source,
     })
@@ -552,6 +561,21 @@ fn read_sized<T>(
         camera.height,
         read,
     )?)
+}
+
+/// Parses and checks the contents of `actions.json` of a scene with `pushes` pushes (the
+/// rules are in the module docs); `path` only names the file in errors.
+///
+/// # Errors
+/// [`SceneError::Json`] for malformed JSON, [`SceneError::Invalid`] for a rule broken.
+pub fn actions_from_json(
+    path: &Path,
+    bytes: &[u8],
+    pushes: usize,
+) -> Result<Vec<PushAction>, SceneError> {
+    let actions: Vec<PushAction> = parse_json(path, bytes)?;
+    check_actions(path, &actions, pushes)?;
+    Ok(actions)
 }
 
 fn check_actions(path: &Path, actions: &[PushAction], pushes: usize) -> Result<(), SceneError> {
@@ -683,14 +707,18 @@ impl Scene {
         let actions: Vec<PushAction> = if !everything || (n == 1 && !files.is_file(&actions_path)) {
             Vec::new()
         } else {
-            let actions: Vec<PushAction> = read_json(files, &actions_path)?;
-            check_actions(&actions_path, &actions, n - 1)?;
-            actions
+            let bytes = files
+                .read(&actions_path)
+                .map_err(|e| io_error(&actions_path, e))?;
+            actions_from_json(&actions_path, &bytes, n - 1)?
         };
 
         let poses_path = dir.join(POSES_FILE);
         let poses = if everything && files.is_file(&poses_path) {
-            Some(read_poses(files, &poses_path, n)?)
+            let bytes = files
+                .read(&poses_path)
+                .map_err(|e| io_error(&poses_path, e))?;
+            Some(poses_from_json(&poses_path, &bytes, n)?)
         } else {
             None
         };

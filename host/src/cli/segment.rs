@@ -7,7 +7,7 @@ use crate::cli::config::ConfigArg;
 use crate::cli::models::{AnySegmenter, ModelArg, parse_model};
 use crate::io::image::{read_gray16, read_rgb8, read_sized};
 use crate::io::scene::{self, SceneCamera};
-use crate::segment::{RgbdFrame, SegmenterParams, StaticSegmenter as _, viz};
+use crate::segment::{RgbdFrame, SegmenterParams, viz};
 use anyhow::{Context as _, bail};
 use clap::Args;
 
@@ -131,7 +131,7 @@ pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
         }
         #[cfg(feature = "onnx")]
         onnx @ AnySegmenter::Onnx(_) => (
-            onnx.segment(&frame, &camera.intrinsics())
+            crate::segment::StaticSegmenter::segment(onnx, &frame, &camera.intrinsics())
                 .with_context(context)?,
             String::new(),
         ),

@@ -1,5 +1,5 @@
 //! `--segmenter` and `--flow`: the built-in static segmenter and optical flow, or learned
-//! ones from ONNX files (feature `onnx`, [`crate::onnx`]), behind one type each so the
+//! ones from ONNX files (feature `onnx`, `riseg::onnx`), behind one type each so the
 //! commands run either.
 
 use std::path::PathBuf;

@@ -477,3 +477,24 @@ fn run_with_models_equals_run_with_their_results_as_files() {
     let builtin = run_with(&tmp.path().join("e"), &[]);
     assert_ne!(builtin, onnx_flow);
 }
+
+#[test]
+fn bench_and_demo_take_the_models() {
+    let Some(dir) = models() else { return };
+    let (seg, flow) = (dir.join("seg_masks.onnx"), dir.join("flow_const.onnx"));
+    let models = ["--segmenter", text(&seg), "--flow", text(&flow)];
+    let bench = riseg(
+        &[&["bench", "--scenes", "1", "--seed", "1"][..], &models].concat(),
+        &[],
+    );
+    assert!(
+        bench.status.success(),
+        "{}",
+        String::from_utf8_lossy(&bench.stderr)
+    );
+    // A model that breaks the contract stops the command with its file named.
+    let bad = dir.join("bad_rank.onnx");
+    let demo = riseg(&["demo", "--flow", text(&bad), "--out", "unused"], &[]);
+    assert_eq!(demo.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&demo.stderr).contains("bad_rank.onnx: input `image1`"));
+}

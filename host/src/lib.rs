@@ -12,6 +12,7 @@
 //! - [`rig`]: the loop of Algorithm 1 and its seams: camera, tracker, episode, robot.
 //! - [`segment`]: the built-in static segmenter (labels + FindAction's heatmap).
 //! - [`flow`]: the built-in dense optical flow (DIS).
+//! - `onnx` (feature `onnx`): a learned segmenter and flow from ONNX files.
 //! - [`io`]: owned images, PNG and `.flo` files, atomic writes, the scene folder format.
 //! - [`draw`]: colours and drawing for pictures.
 //! - [`eval`]: UOIS metrics and the motion ceiling.
@@ -23,6 +24,9 @@
 //!   implies `sim`.
 //! - `sim` (default): the simulator, the `sim` module (rapier3d, parry3d); implies `threads`.
 //! - `threads` (default): rayon in the optical flow and the renderer.
+//! - `onnx` (off): `onnx::OnnxSegmenter` and `onnx::OnnxFlow`, and `--segmenter` /
+//!   `--flow PATH.onnx` on the CLI, through ONNX Runtime (`ort`), loaded at run time from
+//!   `ORT_DYLIB_PATH` or the `onnxruntime` Python wheel.
 //!
 //! `--no-default-features` leaves the pure parts (flow, segment, eval, io, rig, testkit),
 //! which build for `wasm32-unknown-unknown` and compute the same on every target
@@ -34,6 +38,8 @@ pub mod draw;
 pub mod eval;
 pub mod flow;
 pub mod io;
+#[cfg(feature = "onnx")]
+pub mod onnx;
 mod par;
 pub mod rig;
 pub mod segment;

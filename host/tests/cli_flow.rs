@@ -88,3 +88,46 @@ fn help_teaches_the_format_and_presets() {
         assert!(help.contains(needle), "{needle} missing from:\n{help}");
     }
 }
+
+/// Without the `onnx` feature a model path is refused with how to build with it (clap's
+/// usage error, exit code 2), for every command that takes `--segmenter` or `--flow`.
+#[cfg(not(feature = "onnx"))]
+#[test]
+fn a_model_path_without_the_onnx_feature_says_how_to_build_it() {
+    for args in [
+        &[
+            "flow",
+            "a.png",
+            "b.png",
+            "-o",
+            "f.flo",
+            "--flow",
+            "raft.onnx",
+        ][..],
+        &[
+            "segment",
+            "--scene",
+            "s",
+            "--frame",
+            "0",
+            "-o",
+            "l.png",
+            "--segmenter",
+            "m.onnx",
+        ],
+        &["run", "--scene", "s", "--out", "o", "--flow", "raft.onnx"],
+        &["demo", "--segmenter", "m.onnx"],
+        &["bench", "--flow", "raft.onnx"],
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_riseg"))
+            .args(args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains("built without ONNX support") && stderr.contains("--features onnx"),
+            "{args:?}: {stderr}"
+        );
+    }
+}

@@ -44,16 +44,17 @@ use serde::{Deserialize, Serialize};
 use crate::{
     cli::config::Settings,
     cli::eval::{EvalReport, PushReport, write_ceiling_shares},
+    cli::models::Models,
     eval::ceiling::{
         CeilingFrame, CeilingParams, MotionCeiling, moved, poses_by_label, same_motion,
         static_segments,
     },
     eval::metrics::{ImageMetrics, MetricsError, PushAverages, image_metrics},
-    flow::{DisFlow, FlowError, FlowParams},
+    flow::{FlowError, FlowParams},
     io::scene::ObjectPose,
     rig::episode::{EpisodeError, EpisodeFrame, Stop, run_episode},
-    rig::tracker::{StageTimes, TrackError, Tracker},
-    segment::{ClassicalSegmenter, SegmentError, SegmenterParams},
+    rig::tracker::{StageTimes, TrackError},
+    segment::{SegmentError, SegmenterParams},
     sim::{Layout, SimConfig, SimError, SimRig, SimScene, first_usable_seed, scene_seed},
 };
 
@@ -192,14 +193,28 @@ pub struct BenchReport {
 /// # Errors
 /// [`BenchError`] from the simulator or the loop.
 pub fn run_scene(cfg: &BenchConfig, scene: usize) -> Result<SceneResult, BenchError> {
+    run_scene_with(cfg, &Models::default(), scene)
+}
+
+/// [`run_scene`] with the static segmenter and flow `models` (the built-in ones take
+/// their settings from `cfg`; ONNX models are loaded for the scene).
+///
+/// # Errors
+/// [`BenchError`] from loading a model, the simulator or the loop.
+pub fn run_scene_with(
+    cfg: &BenchConfig,
+    models: &Models,
+    scene: usize,
+) -> Result<SceneResult, BenchError> {
     let (sim, sim_seed) = place_scene(scene_seed(cfg.seed, scene), cfg.layout)
         .map_err(|source| BenchError::Sim { scene, source })?;
     let mut rig = SimRig::new(sim);
-    let mut tracker = Tracker::new(
-        ClassicalSegmenter::new(cfg.segmenter)?,
-        DisFlow::new(cfg.flow)?.with_threads(1)?,
-        cfg.core,
-    )?;
+    let settings = Settings {
+        core: cfg.core,
+        segmenter: cfg.segmenter,
+        flow: cfg.flow,
+    };
+    let mut tracker = models.tracker(&settings, Some(1))?;
     let mut static_metrics = Vec::new();
     let mut riseg_metrics = Vec::new();
     let mut ceiling_metrics = Vec::new();
@@ -378,6 +393,18 @@ pub fn run_bench(
     cfg: &BenchConfig,
     on_scene: impl Fn(&SceneResult) + Sync,
 ) -> Result<(BenchReport, Vec<SceneResult>), BenchError> {
+    run_bench_with(cfg, &Models::default(), on_scene)
+}
+
+/// [`run_bench`] with the static segmenter and flow `models` ([`run_scene_with`]).
+///
+/// # Errors
+/// The first [`BenchError`] in scene order among the scenes run.
+pub fn run_bench_with(
+    cfg: &BenchConfig,
+    models: &Models,
+    on_scene: impl Fn(&SceneResult) + Sync,
+) -> Result<(BenchReport, Vec<SceneResult>), BenchError> {
     let workers = rayon::current_num_threads().clamp(1, cfg.scenes.max(1));
     let next_scene = AtomicUsize::new(0);
     let failed = AtomicBool::new(false);
@@ -391,7 +418,7 @@ pub fn run_bench(
                     if scene >= cfg.scenes || failed.load(Ordering::Relaxed) {
                         break;
                     }
-                    let result = run_scene(cfg, scene);
+                    let result = run_scene_with(cfg, models, scene);
                     match &result {
                         Ok(r) => on_scene(r),
                         Err(_) => failed.store(true, Ordering::Relaxed),
@@ -666,6 +693,7 @@ mod command {
 
     use crate::cli::LayoutArg;
     use crate::cli::config::ConfigArg;
+    use crate::cli::models::Models;
 
     pub(in crate::cli) const BENCH_HELP: &str = "\
 The paper's experiment (its Table 1) on simulated scenes: static segmenter, RISeg and the \
@@ -729,6 +757,8 @@ Example:
         #[arg(long)]
         per_scene: bool,
         #[command(flatten)]
+        models: Models,
+        #[command(flatten)]
         config: ConfigArg,
     }
 
@@ -751,7 +781,7 @@ Example:
             )
             .context("progress bar template")?,
         );
-        let (report, results) = bench::run_bench(&cfg, |r| {
+        let (report, results) = bench::run_bench_with(&cfg, &args.models, |r| {
             log::info!(
                 "scene {} (sim seed {}): {} pushes, {:?}",
                 r.scene,

@@ -24,9 +24,10 @@ use std::path::Path;
 use riseg_core::{Intrinsics, action::Push};
 
 use crate::{
-    cli::bench::{BenchConfig, SceneResult, run_bench, score_frame},
+    cli::bench::{BenchConfig, SceneResult, run_bench_with, score_frame},
     cli::config::Settings,
     cli::eval::PushReport,
+    cli::models::Models,
     draw::{Clip, arrow, dot, label_colour, line, overlay_labels},
     eval::metrics::PushAverages,
     flow::viz::flow_to_rgb,
@@ -36,7 +37,7 @@ use crate::{
     },
     rig::episode::{Decision, EpisodeFrame, Stop, run_episode},
     rig::robot::PushCommand,
-    rig::tracker::{Observation, Tracker},
+    rig::tracker::Observation,
     sim::{Layout, SimConfig, SimRig, SimScene},
 };
 
@@ -101,6 +102,7 @@ pub fn run_demo(
     seed: u64,
     layout: Layout,
     settings: &Settings,
+    models: &Models,
     mut on_frame: impl FnMut(usize),
 ) -> anyhow::Result<DemoReport> {
     use anyhow::Context as _;
@@ -108,7 +110,7 @@ pub fn run_demo(
     let sim = SimScene::with_config(seed, SimConfig::D415.with_layout(layout))
         .with_context(|| format!("building simulated {layout} scene {seed}"))?;
     let mut rig = SimRig::new(sim);
-    let mut tracker = Tracker::from_settings(settings)?;
+    let mut tracker = models.tracker(settings, None)?;
     let mut frames = Vec::new();
     let summary = run_episode(
         &mut rig.camera,
@@ -130,7 +132,7 @@ pub fn run_demo(
     };
     let mut md = markdown(&report);
     md.push('\n');
-    md.push_str(&bench_spread(&report, settings)?);
+    md.push_str(&bench_spread(&report, settings, models)?);
     let path = out.join("report.md");
     write_atomic(&path, md.as_bytes()).with_context(|| format!("writing {}", path.display()))?;
     remove_stale_frames(out, report.frames.len())?;
@@ -302,7 +304,11 @@ pub const SPREAD_SCENES: usize = 23;
 ///
 /// # Errors
 /// The bench's errors.
-pub fn bench_spread(report: &DemoReport, settings: &Settings) -> anyhow::Result<String> {
+pub fn bench_spread(
+    report: &DemoReport,
+    settings: &Settings,
+    models: &Models,
+) -> anyhow::Result<String> {
     let cfg = BenchConfig {
         layout: report.layout,
         core: settings.core,
@@ -310,7 +316,7 @@ pub fn bench_spread(report: &DemoReport, settings: &Settings) -> anyhow::Result<
         flow: settings.flow,
         ..BenchConfig::new(SPREAD_SCENES, 1)
     };
-    let (_, scenes) = run_bench(&cfg, |_| {})?;
+    let (_, scenes) = run_bench_with(&cfg, models, |_| {})?;
     let found = |m: Option<&crate::eval::metrics::ImageMetrics>| {
         m.map_or(0.0, |m| 100.0 * m.objects_detected_share)
     };
@@ -434,6 +440,7 @@ mod command {
 
     use crate::cli::LayoutArg;
     use crate::cli::config::ConfigArg;
+    use crate::cli::models::Models;
 
     pub(in crate::cli) const DEMO_HELP: &str = "\
 Run the whole loop on a simulated scene and write a report (the default command).
@@ -468,6 +475,8 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
         #[arg(long, default_value = "riseg-demo")]
         out: PathBuf,
         #[command(flatten)]
+        models: Models,
+        #[command(flatten)]
         config: ConfigArg,
     }
 
@@ -477,6 +486,7 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
                 layout: LayoutArg::Packed,
                 seed: None,
                 out: PathBuf::from("riseg-demo"),
+                models: Models::default(),
                 config: ConfigArg::default(),
             }
         }
@@ -494,13 +504,14 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
         let seed = args
             .seed
             .unwrap_or_else(|| crate::cli::demo::default_seed(layout));
-        let report = crate::cli::demo::run_demo(&args.out, seed, layout, &settings, |t| {
-            bar.set_message(format!(
-                "frame {t} done; pushing, rendering frame {}",
-                t + 1
-            ));
-        })
-        .with_context(|| format!("demo on simulated {layout} scene {seed}"))?;
+        let report =
+            crate::cli::demo::run_demo(&args.out, seed, layout, &settings, &args.models, |t| {
+                bar.set_message(format!(
+                    "frame {t} done; pushing, rendering frame {}",
+                    t + 1
+                ));
+            })
+            .with_context(|| format!("demo on simulated {layout} scene {seed}"))?;
         bar.finish_and_clear();
         say!(
             "riseg demo: simulated {layout} scene {}, {} pushes; {}.\n",

@@ -1,7 +1,9 @@
-//! `riseg flow`: dense optical flow between two PNG files with the built-in DIS estimator.
+//! `riseg flow`: dense optical flow between two PNG files with the built-in DIS estimator
+//! or an ONNX model (`--flow`).
 
 use std::path::PathBuf;
 
+use crate::cli::models::{ModelArg, parse_model};
 use crate::flow::{DisFlow, FlowEstimator as _, FlowParams, viz::flow_to_rgb};
 use crate::io::image::{read_png_as_rgb8, write_flo, write_rgb8};
 use anyhow::{Context as _, bail};
@@ -10,7 +12,7 @@ use clap::ValueEnum;
 pub(super) const FLOW_HELP: &str = "\
 Dense optical flow from FIRST.png to SECOND.png with the built-in DIS estimator \
 (coarse-to-fine patch inverse search, densification, variational refinement; no model \
-weights).
+weights); --flow PATH.onnx runs a learned flow network instead (contract below).
 
 The pixel at (x, y) of FIRST shows the same point as (x + dx, y + dy) of SECOND; dx, dy \
 are in pixels, y grows downwards. The images are read as PNG (any bit depth and colour \
@@ -42,7 +44,11 @@ pub(super) struct FlowArgs {
     /// Also write a colour-wheel picture of the flow (PNG).
     #[arg(long, value_name = "OUT.png")]
     viz: Option<PathBuf>,
-    /// Speed/accuracy preset.
+    /// Optical flow: `builtin` (DIS, --preset) or PATH.onnx (feature `onnx`; tensor
+    /// contract below).
+    #[arg(long, value_name = "builtin|PATH.onnx", default_value = "builtin", value_parser = parse_model)]
+    flow: ModelArg,
+    /// Speed/accuracy preset of the built-in flow.
     #[arg(long, value_enum, default_value_t = Preset::Medium)]
     preset: Preset,
     /// Worker threads; 0 uses every core (at most 256).
@@ -91,7 +97,9 @@ pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
             second.height()
         );
     }
-    let estimator = DisFlow::new(params)?.with_threads(args.threads)?;
+    let estimator = args
+        .flow
+        .flow(|| DisFlow::new(params)?.with_threads(args.threads))?;
     let flow = estimator
         .estimate(first.view(), second.view())
         .with_context(|| {

@@ -18,6 +18,7 @@ pub mod demo;
 pub mod eval;
 mod flow;
 pub mod generate;
+pub mod models;
 pub mod preview;
 pub mod run;
 mod segment;
@@ -57,7 +58,7 @@ struct Cli {
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Run the whole loop on a simulated scene and write a report (the default command).
-    #[command(long_about = demo::DEMO_HELP)]
+    #[command(long_about = demo::DEMO_HELP, after_long_help = models::MODELS_HELP)]
     Demo(demo::DemoArgs),
     /// Score predicted label maps against a dataset's ground truth (UOIS metrics).
     ///
@@ -112,9 +113,10 @@ enum Command {
     /// Example: riseg gen --scenes 23 --seed 1 --layout packed --out data/packed23
     #[command(verbatim_doc_comment)]
     Gen(generate::GenArgs),
-    /// Segment one RGB-D frame with the built-in classical segmenter (no model weights)
+    /// Segment one RGB-D frame with the built-in classical segmenter (no model weights) or
+    /// an ONNX model (--segmenter PATH.onnx)
     ///
-    /// Fits the table plane, keeps what stands on it, grows regions over depth and normal
+    /// The built-in segmenter fits the table plane, keeps what stands on it, grows regions over depth and normal
     /// continuity, and writes 16-bit instance labels (0 = background, 1..n = segments by
     /// decreasing area) and, if asked, the 8-bit heatmap FindAction uses: >= 150 surely
     /// inside one object, 120-149 where objects touch or depth is unsure, < 120 the table.
@@ -130,17 +132,18 @@ enum Command {
     ///
     /// scene_camera.json: {"width": 640, "height": 480, "fx": 615.0, "fy": 615.0,
     /// "cx": 319.5, "cy": 239.5, "depth_unit_m": 0.001}
-    #[command(verbatim_doc_comment)]
+    #[command(verbatim_doc_comment, after_long_help = models::MODELS_HELP)]
     Segment(segment::SegmentArgs),
-    /// Dense optical flow from FIRST.png to SECOND.png with the built-in DIS estimator.
-    #[command(long_about = flow::FLOW_HELP)]
+    /// Dense optical flow from FIRST.png to SECOND.png with the built-in DIS estimator or an
+    /// ONNX model (--flow PATH.onnx).
+    #[command(long_about = flow::FLOW_HELP, after_long_help = models::MODELS_HELP)]
     Flow(flow::FlowArgs),
     /// The paper's experiment (Table 1) on simulated scenes: static segmenter, RISeg and
     /// the motion ceiling.
-    #[command(long_about = bench::BENCH_HELP)]
+    #[command(long_about = bench::BENCH_HELP, after_long_help = models::MODELS_HELP)]
     Bench(bench::BenchArgs),
     /// Run RISeg on recorded scenes (the pushes already happened) and write its masks.
-    #[command(long_about = run::RUN_HELP)]
+    #[command(long_about = run::RUN_HELP, after_long_help = models::MODELS_HELP)]
     Run(run::RunArgs),
     /// Print every setting --config can change, with its default (`riseg config --print`).
     ///

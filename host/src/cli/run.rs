@@ -305,8 +305,8 @@ mod command {
     use std::path::PathBuf;
 
     use crate::cli::config::ConfigArg;
+    use crate::cli::models::Models;
     use crate::cli::run::{InputDirs, run_scene};
-    use crate::rig::tracker::Tracker;
     use anyhow::{Context as _, bail};
     use clap::Args;
     use indicatif::{ProgressBar, ProgressStyle};
@@ -323,9 +323,13 @@ is written to PRED/<scene>/label/<t>.png (16-bit, 0 = background), the layout \
 `riseg eval --pred PRED` reads. Each PNG is written atomically, and a scene whose \
 folder, input files or tracking fail writes no mask.
 
-Flow and static segmentation from files: --flow-dir and --static-dir replace the \
-built-in flow and segmenter by files computed elsewhere (RAFT flow, MSMFormer or UCN \
-labels), read for the scene folder named S and frame t (NNNNNN = t, six digits):
+Where the static segmentation and the flow come from (four options, two per stage): \
+--segmenter builtin|PATH.onnx and --flow builtin|PATH.onnx compute them (builtin: the \
+classical segmenter and DIS flow, the default; PATH.onnx: a learned model run by ONNX \
+Runtime, riseg built with --features onnx, contract below); --static-dir and --flow-dir \
+read them from files computed elsewhere instead (RAFT flow, MSMFormer or UCN labels). \
+--static-dir excludes --segmenter and --flow-dir excludes --flow. Files are read for the \
+scene folder named S and frame t (NNNNNN = t, six digits):
 
   FLOW/S/flow/NNNNNN.flo      flow from frame t to t+1 (Middlebury .flo, pixels);
                               a component >= 1e9 is unknown and is not used
@@ -343,7 +347,8 @@ Examples:
   riseg run --scene data/sim23/scene_004 --out out/pred
   riseg run --dataset data/sim23 --out out/pred && riseg eval --gt data/sim23 --pred out/pred
   riseg run --dataset data/packed --flow-dir data/packed --out out/exact   (exact flow)
-  riseg run --dataset data/real --flow-dir raft --static-dir msmformer --out out/learned";
+  riseg run --dataset data/real --flow-dir raft --static-dir msmformer --out out/learned
+  riseg run --dataset data/real --segmenter msmformer.onnx --flow raft.onnx --out out/onnx";
 
     #[derive(Debug, Args)]
     #[command(group(clap::ArgGroup::new("input").required(true).args(["scene", "dataset"])))]
@@ -359,13 +364,15 @@ Examples:
         out: PathBuf,
         /// Read the flow from frame t to t+1 of scene S from FLOW/S/flow/<t>.flo (Middlebury)
         /// instead of computing it; a dataset made by `riseg gen` holds its exact flow.
-        #[arg(long, value_name = "FLOW")]
+        #[arg(long, value_name = "FLOW", conflicts_with = "flow")]
         flow_dir: Option<PathBuf>,
         /// Read the static labels of frame t of scene S from STATIC/S/label/<t>.png (8- or
         /// 16-bit, 0 = background) and its heatmap from STATIC/S/heat/<t>.png (8-bit, optional)
         /// instead of segmenting.
-        #[arg(long, value_name = "STATIC")]
+        #[arg(long, value_name = "STATIC", conflicts_with = "segmenter")]
         static_dir: Option<PathBuf>,
+        #[command(flatten)]
+        models: Models,
         #[command(flatten)]
         config: ConfigArg,
     }
@@ -383,7 +390,7 @@ Examples:
             (None, None) => bail!("give --scene DIR or --dataset DIR"),
         };
         let settings = args.config.load()?.settings();
-        let mut tracker = Tracker::from_settings(&settings)?;
+        let mut tracker = args.models.tracker(&settings, None)?;
         let bar = ProgressBar::new(scenes.len() as u64).with_style(
             ProgressStyle::with_template(
                 "{bar:30} {pos}/{len} scenes  {elapsed}  eta {eta}  {msg}",

@@ -1,11 +1,13 @@
-//! `riseg segment`: one RGB-D frame through the built-in classical segmenter.
+//! `riseg segment`: one RGB-D frame through the built-in classical segmenter or an ONNX
+//! model (`--segmenter`).
 
 use std::path::PathBuf;
 
 use crate::cli::config::ConfigArg;
+use crate::cli::models::{AnySegmenter, ModelArg, parse_model};
 use crate::io::image::{read_gray16, read_rgb8, read_sized};
 use crate::io::scene::{self, SceneCamera};
-use crate::segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams, viz};
+use crate::segment::{RgbdFrame, SegmenterParams, viz};
 use anyhow::{Context as _, bail};
 use clap::Args;
 
@@ -49,6 +51,10 @@ pub(super) struct SegmentArgs {
     /// segmenter.seed of --config].
     #[arg(long)]
     seed: Option<u64>,
+    /// Static segmenter: `builtin` (classical, no weights) or PATH.onnx (feature `onnx`;
+    /// tensor contract below).
+    #[arg(long, value_name = "builtin|PATH.onnx", default_value = "builtin", value_parser = parse_model)]
+    segmenter: ModelArg,
     /// Settings file (TOML): its [segmenter] section replaces the segmenter's defaults
     /// (the other sections are checked, not used). See `riseg config --help`.
     #[arg(long, value_name = "FILE")]
@@ -105,14 +111,32 @@ pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
     }
     let (w, h) = (width, height);
     let frame = RgbdFrame::new(w, h, rgb.as_slice(), &depth_m)?;
-    let mut segmenter = ClassicalSegmenter::new(SegmenterParams {
+    let mut segmenter = args.segmenter.segmenter(SegmenterParams {
         seed: args.seed.unwrap_or(params.seed),
         ..params
     })?;
-    let out = segmenter
-        .segment_detailed(&frame, &camera.intrinsics())
-        .with_context(|| format!("segmenting {}", rgb_path.display()))?;
-    let seg = &out.segmentation;
+    let context = || format!("segmenting {}", rgb_path.display());
+    // The built-in segmenter also reports the table plane it found.
+    let (seg, plane) = match &mut segmenter {
+        AnySegmenter::Builtin(classical) => {
+            let out = classical
+                .segment_detailed(&frame, &camera.intrinsics())
+                .with_context(context)?;
+            let (n, offset_m) = (out.plane.normal, out.plane.offset_m);
+            let plane = format!(
+                "; table plane normal ({:.3}, {:.3}, {:.3}), camera {offset_m:.3} m above it",
+                n.x, n.y, n.z
+            );
+            (out.segmentation, plane)
+        }
+        #[cfg(feature = "onnx")]
+        onnx @ AnySegmenter::Onnx(_) => (
+            crate::segment::StaticSegmenter::segment(onnx, &frame, &camera.intrinsics())
+                .with_context(context)?,
+            String::new(),
+        ),
+    };
+    let seg = &seg;
 
     crate::io::image::write_gray16(&args.output, &seg.labels)?;
     if let Some(path) = &args.heatmap {
@@ -121,15 +145,9 @@ pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.viz {
         crate::io::image::write_rgb8(path, &viz::side_by_side(&rgb, seg))?;
     }
-    let n = out.plane.normal;
     say!(
-        "{} segments; table plane normal ({:.3}, {:.3}, {:.3}), camera {:.3} m above it; \
-         labels -> {}\n",
+        "{} segments{plane}; labels -> {}\n",
         seg.segment_count(),
-        n.x,
-        n.y,
-        n.z,
-        out.plane.offset_m,
         args.output.display()
     )?;
     Ok(())

@@ -100,6 +100,10 @@ pub enum FlowError {
     #[cfg(feature = "threads")]
     #[error("cannot build the flow thread pool")]
     ThreadPool(#[from] rayon::ThreadPoolBuildError),
+    /// An ONNX flow network failed ([`crate::onnx::OnnxFlow`]).
+    #[cfg(feature = "onnx")]
+    #[error(transparent)]
+    Onnx(#[from] crate::onnx::OnnxError),
 }
 
 /// A flow component of at least this magnitude, pixels, means "unknown" in `.flo` files
@@ -205,7 +209,7 @@ pub trait FlowEstimator {
 }
 
 /// Checks that two images have one non-empty size.
-fn check_pair(w0: usize, h0: usize, w1: usize, h1: usize) -> Result<(), FlowError> {
+pub(crate) fn check_pair(w0: usize, h0: usize, w1: usize, h1: usize) -> Result<(), FlowError> {
     if (w0, h0) != (w1, h1) {
         return Err(FlowError::SizeMismatch {
             first_width: w0,

@@ -17,7 +17,8 @@
 //!
 //! [`ClassicalSegmenter`] is the built-in implementation (table-plane fit, height above the
 //! table, region growing over depth and normal continuity); a learned model (UCN,
-//! MSMFormer through ONNX) implements the same trait.
+//! MSMFormer through ONNX, `crate::onnx::OnnxSegmenter` with the feature `onnx`) implements
+//! the same trait.
 
 mod classical;
 mod edt;
@@ -111,6 +112,10 @@ pub enum SegmentError {
         /// Segments found.
         count: usize,
     },
+    /// An ONNX segmenter failed ([`crate::onnx::OnnxSegmenter`]).
+    #[cfg(feature = "onnx")]
+    #[error(transparent)]
+    Onnx(#[from] crate::onnx::OnnxError),
 }
 
 /// One RGB-D frame, borrowed. Construction checks the sizes, so a frame always describes

@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Builds the riseg wheel with maturin, installs it into a fresh virtualenv and runs the
+# pytest suite there against the `riseg` CLI built from this repository.
+#
+# maturin lives in a cached tools virtualenv; the test virtualenv is new on every run, so
+# the wheel must install as a user's would. Every Python package is pinned. Nothing is
+# skipped: a missing tool, package or binary fails the script.
+#
+# Environment: RISEG_CI_CACHE (default ~/.cache/riseg-ci) for the tools and, unless
+# CARGO_TARGET_DIR is set, the cargo target; PYTHON (default python3).
+set -euo pipefail
+cd "$(dirname "$0")"
+
+MATURIN_VERSION=1.16.0
+NUMPY_VERSION=2.4.6
+PYTEST_VERSION=8.4.2
+
+CACHE="${RISEG_CI_CACHE:-$HOME/.cache/riseg-ci}"
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$CACHE/target}"
+PYTHON="${PYTHON:-python3}"
+TOOLS="$CACHE/py-tools"
+WORK="$(mktemp -d)"
+trap 'rm -rf "$WORK"' EXIT
+
+if [ "$("$TOOLS/bin/maturin" --version 2>/dev/null)" != "maturin $MATURIN_VERSION" ]; then
+  rm -rf "$TOOLS"
+  "$PYTHON" -m venv "$TOOLS"
+  "$TOOLS/bin/pip" install --quiet --disable-pip-version-check "maturin==$MATURIN_VERSION"
+fi
+
+echo "python/test.sh: wheel (maturin $MATURIN_VERSION)"
+"$TOOLS/bin/maturin" build --release --quiet --out "$WORK/wheels"
+
+echo "python/test.sh: the riseg CLI the tests compare with"
+(cd .. && cargo build --release --quiet -p riseg --bin riseg)
+
+echo "python/test.sh: fresh virtualenv"
+"$PYTHON" -m venv "$WORK/venv"
+"$WORK/venv/bin/pip" install --quiet --disable-pip-version-check \
+  "numpy==$NUMPY_VERSION" "pytest==$PYTEST_VERSION"
+"$WORK/venv/bin/pip" install --quiet --disable-pip-version-check --no-index \
+  "$WORK"/wheels/riseg-*.whl
+
+# Run from the tests folder: `import riseg` must find the installed wheel, not the source.
+cd tests
+RISEG_BIN="$CARGO_TARGET_DIR/release/riseg" "$WORK/venv/bin/python" -m pytest -p no:cacheprovider "$@"

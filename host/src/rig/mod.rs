@@ -12,8 +12,14 @@
 //! The simulator (`crate::sim`, feature `sim`) is one camera and one robot; the loop never
 //! knows which.
 
+pub mod calib;
 pub mod camera;
 pub mod episode;
+#[cfg(feature = "franka")]
+pub mod franka;
+#[cfg(feature = "realsense")]
+pub mod realsense;
+pub mod record;
 pub mod robot;
 pub mod tracker;
 pub mod workspace;

@@ -315,27 +315,14 @@ mod tests {
         // Sums written out from the header, independently of the table above.
         assert_eq!(STATE_ARRAY_NAMES[34], "O_T_EE_c");
         assert_eq!(STATE_O_T_EE, 8);
-        assert_eq!(
-            STATE_O_T_EE_C,
-            8 + 8
-                * (6 * 16
-                    + 1
-                    + 9
-                    + 3
-                    + 1
-                    + 9
-                    + 3
-                    + 2
-                    + 2
-                    + 10 * 7
-                    + 6
-                    + 7
-                    + 6
-                    + 7
-                    + 3 * 6
-                    + 3
-                    + 3 * 2)
-        );
+        // O_T_EE .. NE_T_EE; m_ee, I_ee, F_x_Cee, m_load, I_load, F_x_Cload; elbow,
+        // elbow_d; tau_J .. joint_contact (nine 7-arrays); cartesian_contact,
+        // joint_collision, cartesian_collision; tau_ext_hat_filtered; O_F_ext_hat_K,
+        // K_F_ext_hat_K, O_dP_EE_d; O_ddP_O; elbow_c, delbow_c, ddelbow_c.
+        let before_o_t_ee_c =
+            6 * 16 + (1 + 9 + 3) * 2 + 2 * 2 + 9 * 7 + (6 + 7 + 6) + 7 + 3 * 6 + 3 + 3 * 2;
+        assert_eq!(before_o_t_ee_c, 242);
+        assert_eq!(STATE_O_T_EE_C, 8 + 8 * before_o_t_ee_c);
         assert_eq!(STATE_MOTION_MODE, 8 + 8 * 284);
         assert_eq!(STATE_LEN, 2373);
         assert_eq!(COMMAND_LEN, 8 + 8 * 38 + 2 + 8 * 7);

@@ -23,6 +23,10 @@
 //!   implies `sim`.
 //! - `sim` (default): the simulator, the `sim` module (rapier3d, parry3d); implies `threads`.
 //! - `threads` (default): rayon in the optical flow and the renderer.
+//! - `realsense`: the Intel RealSense D415 camera, `rig::realsense` (librealsense2 loaded at
+//!   run time with `libloading`; the only `unsafe` in riseg, confined to its FFI module).
+//! - `franka`: the Franka Emika Panda robot, `rig::franka` (an own FCI client, no
+//!   dependency).
 //!
 //! `--no-default-features` leaves the pure parts (flow, segment, eval, io, rig, testkit),
 //! which build for `wasm32-unknown-unknown` and compute the same on every target

@@ -68,7 +68,7 @@ pub const MODE_MOVE: u8 = 2;
 
 /// `RobotState`'s double arrays in declaration order, from `O_T_EE` to `dtheta` (the
 /// names are in [`STATE_ARRAY_NAMES`]).
-const STATE_ARRAYS: [usize; 39] = [
+pub const STATE_ARRAYS: [usize; 39] = [
     16, 16, 16, 16, 16, 16, 1, 9, 3, 1, 9, 3, 2, 2, 7, 7, 7, 7, 7, 7, 7, 7, 7, 6, 7, 6, 7, 6, 6, 6,
     3, 2, 2, 2, 16, 6, 6, 7, 7,
 ];

@@ -221,3 +221,47 @@ fn a_camera_lost_before_the_first_frame_stops_the_loop_without_a_push() {
     assert_eq!(cam.frames(), 0);
     assert!(cam.scene(&[]).is_none());
 }
+
+/// `riseg run --live` with the stand-in as librealsense2: a camera lost at the first
+/// capture ends the run with exit code 1, an error naming the camera, and nothing recorded.
+#[cfg(all(feature = "cli", feature = "franka"))]
+#[test]
+fn riseg_run_live_stops_cleanly_when_the_camera_is_lost() {
+    let dir = tempfile::tempdir().unwrap();
+    let lib = standin(dir.path(), "cli_gone", &["-DSTANDIN_FAIL_AFTER=30"]);
+    let cal = dir.path().join("cal.json");
+    std::fs::write(
+        &cal,
+        r#"{"robot_from_camera": [[1, 0, 0, 0.5], [0, -1, 0, 0], [0, 0, -1, 0.6], [0, 0, 0, 1]]}"#,
+    )
+    .unwrap();
+    let out = dir.path().join("rig");
+    let o = Command::new(env!("CARGO_BIN_EXE_riseg"))
+        .args([
+            "run",
+            "--live",
+            "--camera",
+            "realsense",
+            "--robot",
+            "franka",
+            "--dry-run",
+        ])
+        .arg("--calib")
+        .arg(&cal)
+        .arg("--out")
+        .arg(&out)
+        .env("RISEG_REALSENSE_LIB", &lib)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    for needle in [
+        "the live run stopped",
+        "nothing recorded",
+        "RealSense",
+        "unplugged",
+    ] {
+        assert!(stderr.contains(needle), "{needle}: {stderr}");
+    }
+    assert!(!out.join("scene_live").exists());
+}

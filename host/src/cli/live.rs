@@ -412,3 +412,70 @@ fn write_recording<C: Camera>(
         label_dir.display()
     ))
 }
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+    use crate::rig::camera::{CameraError, CameraFrame};
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        live: LiveArgs,
+    }
+
+    /// A camera that is unplugged after `frames` captures.
+    struct Unplugged<C> {
+        inner: C,
+        frames: usize,
+    }
+
+    impl<C: Camera> Camera for Unplugged<C> {
+        fn capture(&mut self) -> Result<CameraFrame, CameraError> {
+            if self.frames == 0 {
+                return Err(CameraError("test camera: unplugged".into()));
+            }
+            self.frames -= 1;
+            self.inner.capture()
+        }
+    }
+
+    #[test]
+    fn a_camera_lost_after_a_push_ends_the_run_with_its_recording_kept() {
+        let args = Cli::parse_from(["live"]).live;
+        let mut rig = SimRig::new(SimScene::new(0).unwrap());
+        let mut camera = Unplugged {
+            inner: &mut rig.camera,
+            frames: 1,
+        };
+        let out = tempfile::tempdir().unwrap();
+        let err = run(
+            &mut camera,
+            &mut rig.robot,
+            &rig.setup,
+            &args,
+            &Settings::default(),
+            out.path(),
+        )
+        .unwrap_err();
+        let text = format!("{err:#}");
+        assert!(
+            text.contains("test camera: unplugged") && text.contains("recording of 1 frames"),
+            "{text}"
+        );
+        // The push after frame 0 was made; the recording holds frame 0 and no action.
+        assert_eq!(rig.robot.pushes().len(), 1);
+        let scene = crate::io::scene::Scene::read(&out.path().join(SCENE_NAME)).unwrap();
+        assert_eq!((scene.frames(), scene.actions.len()), (1, 0));
+        assert!(
+            out.path()
+                .join(PRED_DIR)
+                .join(SCENE_NAME)
+                .join(LABEL_DIR)
+                .join(frame_file_name(0, "png"))
+                .exists()
+        );
+    }
+}

@@ -107,59 +107,84 @@ fn mock(fault: Fault) -> (u16, JoinHandle<Seen>) {
             state.errors[7] = true;
         }
         let mut motion: Option<u32> = None;
+        let mut last_id = 0;
         let deadline = Instant::now() + Duration::from_secs(30);
         let mut buf = [0u8; 4096];
         while Instant::now() < deadline {
+            // A Move request starts a motion (checked before each state, and again when a
+            // command arrives first: the request may still be in flight).
+            let mut poll_move =
+                |motion: &mut Option<u32>, state: &mut State| match read_message_nonblocking(
+                    &mut tcp,
+                ) {
+                    Ok(Some((h, p))) => {
+                        assert_eq!((h.command, h.size, p.len()), (protocol::CMD_MOVE, 68, 56));
+                        assert_eq!(
+                            u32::from_le_bytes([p[4], p[5], p[6], p[7]]),
+                            protocol::MOTION_CARTESIAN_POSITION
+                        );
+                        *motion = Some(h.command_id);
+                        let started = protocol::message(
+                            protocol::CMD_MOVE,
+                            h.command_id,
+                            &[protocol::MOVE_STARTED],
+                        );
+                        tcp.write_all(&started).unwrap();
+                        state.robot_mode = protocol::MODE_MOVE;
+                        Ok(true)
+                    }
+                    Ok(None) => Ok(false),
+                    Err(()) => Err(()),
+                };
+            match poll_move(&mut motion, &mut state) {
+                Ok(true) => seen.moves += 1,
+                Ok(false) => {}
+                Err(()) => return seen,
+            }
             state.message_id += 1;
             udp.send_to(&state.encode(), client).unwrap();
-            if let Ok((n, _)) = udp.recv_from(&mut buf) {
-                let (id, pose, finished) = protocol::parse_command(&buf[..n]).unwrap();
-                assert_eq!(id, state.message_id, "a command answers the newest state");
-                let move_id = motion.expect("commands only during a motion");
-                seen.poses.push(pose);
-                state.o_t_ee_c = pose;
-                state.o_t_ee = pose;
-                let k = seen.poses.len();
-                if fault == Fault::LoseAfter(k) {
-                    return seen;
-                }
-                if fault == Fault::ReflexAfter(k) {
-                    state.robot_mode = 4;
-                    state.errors[3] = true;
-                    let abort = protocol::message(protocol::CMD_MOVE, move_id, &[6]);
-                    tcp.write_all(&abort).unwrap();
-                }
-                if finished {
-                    seen.finished.push(k - 1);
-                    tcp.write_all(&protocol::message(
-                        protocol::CMD_MOVE,
-                        move_id,
-                        &[protocol::MOVE_SUCCESS],
-                    ))
-                    .unwrap();
-                    motion = None;
-                    state.robot_mode = protocol::MODE_IDLE;
+            // Lockstep during a motion (a generous wait: a loaded CI machine), 1 kHz-ish idle.
+            let wait_ms = if motion.is_some() { 100 } else { 1 };
+            udp.set_read_timeout(Some(Duration::from_millis(wait_ms)))
+                .unwrap();
+            let Ok((n, _)) = udp.recv_from(&mut buf) else {
+                continue;
+            };
+            let (id, pose, finished) = protocol::parse_command(&buf[..n]).unwrap();
+            assert!(
+                id > last_id && id <= state.message_id,
+                "a command answers a new state: {id}"
+            );
+            last_id = id;
+            let wait_for_move = Instant::now() + Duration::from_millis(500);
+            while motion.is_none() && Instant::now() < wait_for_move {
+                match poll_move(&mut motion, &mut state) {
+                    Ok(true) => seen.moves += 1,
+                    Ok(false) => std::thread::sleep(Duration::from_millis(1)),
+                    Err(()) => return seen,
                 }
             }
-            match read_message_nonblocking(&mut tcp) {
-                Ok(Some((h, p))) => {
-                    assert_eq!((h.command, h.size, p.len()), (protocol::CMD_MOVE, 68, 56));
-                    assert_eq!(
-                        u32::from_le_bytes([p[4], p[5], p[6], p[7]]),
-                        protocol::MOTION_CARTESIAN_POSITION
-                    );
-                    seen.moves += 1;
-                    motion = Some(h.command_id);
-                    tcp.write_all(&protocol::message(
-                        protocol::CMD_MOVE,
-                        h.command_id,
-                        &[protocol::MOVE_STARTED],
-                    ))
-                    .unwrap();
-                    state.robot_mode = protocol::MODE_MOVE;
-                }
-                Ok(None) => {}
-                Err(()) => return seen,
+            let move_id = motion.expect("commands only during a motion");
+            seen.poses.push(pose);
+            state.o_t_ee_c = pose;
+            state.o_t_ee = pose;
+            let k = seen.poses.len();
+            if fault == Fault::LoseAfter(k) {
+                return seen;
+            }
+            if fault == Fault::ReflexAfter(k) {
+                state.robot_mode = 4;
+                state.errors[3] = true;
+                let abort = protocol::message(protocol::CMD_MOVE, move_id, &[6]);
+                tcp.write_all(&abort).unwrap();
+            }
+            if finished {
+                seen.finished.push(k - 1);
+                let done =
+                    protocol::message(protocol::CMD_MOVE, move_id, &[protocol::MOVE_SUCCESS]);
+                tcp.write_all(&done).unwrap();
+                motion = None;
+                state.robot_mode = protocol::MODE_IDLE;
             }
         }
         seen

@@ -21,7 +21,9 @@
 //!   robot itself stops a motion whose commands stop arriving (FCI's communication
 //!   constraints), so a lost client never leaves the arm moving.
 //!
-//! Not covered: the robot's own settings (collision thresholds, impedance, end-effector
+//! Not covered: joint limits (the client has no kinematics; the robot checks its joints
+//! itself and aborts with a reflex, reported as above) and stopping a push half-way (it
+//! lasts a few seconds; the arm's stop button is the immediate stop). The robot's own settings (collision thresholds, impedance, end-effector
 //! frame and load) are left as Desk configured them; set them in Desk before the first
 //! live push.
 
@@ -259,7 +261,7 @@ impl Franka {
     }
 }
 
-/// Column-major 4x4 (FCI) to a matrix and back.
+/// A column-major 4x4 (FCI's layout) as a matrix.
 fn matrix(cm: &[f64; 16]) -> Matrix4<f64> {
     Matrix4::from_column_slice(cm)
 }

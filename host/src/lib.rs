@@ -27,6 +27,10 @@
 //! - `onnx` (off): `onnx::OnnxSegmenter` and `onnx::OnnxFlow`, and `--segmenter` /
 //!   `--flow PATH.onnx` on the CLI, through ONNX Runtime (`ort`), loaded at run time from
 //!   `ORT_DYLIB_PATH` or the `onnxruntime` Python wheel.
+//! - `realsense`: the Intel RealSense D415 camera, `rig::realsense` (librealsense2 loaded at
+//!   run time with `libloading`; the only `unsafe` in riseg, confined to its FFI module).
+//! - `franka`: the Franka Emika Panda robot, `rig::franka` (an own FCI client, no
+//!   dependency).
 //!
 //! `--no-default-features` leaves the pure parts (flow, segment, eval, io, rig, testkit),
 //! which build for `wasm32-unknown-unknown` and compute the same on every target

@@ -13,11 +13,13 @@ macro_rules! say {
 }
 
 pub mod bench;
+mod calib;
 pub mod config;
 pub mod demo;
 pub mod eval;
 mod flow;
 pub mod generate;
+pub mod live;
 pub mod models;
 pub mod preview;
 pub mod run;
@@ -145,6 +147,13 @@ enum Command {
     /// Run RISeg on recorded scenes (the pushes already happened) and write its masks.
     #[command(long_about = run::RUN_HELP, after_long_help = models::MODELS_HELP)]
     Run(run::RunArgs),
+    /// Check a hand-eye calibration file: where the camera and the table sit in the robot
+    /// frame.
+    ///
+    /// Example:
+    ///   riseg calib check --calib hand_eye.json --scene out/rig/scene_live
+    #[command(verbatim_doc_comment)]
+    Calib(calib::CalibArgs),
     /// Print every setting --config can change, with its default (`riseg config --print`).
     ///
     /// `riseg config --print` writes every setting with its default, meaning and unit, as
@@ -200,6 +209,7 @@ pub fn main() -> ExitCode {
         Command::Bench(args) => bench::command(&args),
         Command::Run(args) => run::command(&args),
         Command::Config(args) => config::command(&args),
+        Command::Calib(args) => calib::command(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -343,15 +343,28 @@ These are the names of a scene folder's own flow/ and label/, so a dataset made 
 must have the size in S/scene_camera.json; a missing, corrupt, mis-sized or (heatmap) \
 non-8-bit file stops the run with an error naming the file, the scene and the frame.
 
+Live (--live): the loop on devices, recorded. --camera sim --robot sim runs it on the \
+simulator through the same code path as --camera realsense --robot franka (features \
+`realsense` and `franka`; --calib FILE, the hand-eye calibration, is required there). \
+The recording is written to OUT/scene_live/ (the scene folder format; `riseg run --scene \
+OUT/scene_live` replays it to the same masks) and the run's masks to \
+OUT/pred/scene_live/label/. --dry-run plans and prints frame 0's push and sends nothing. \
+Ctrl-C ends the run before the next push (a second Ctrl-C exits at once); a lost camera \
+or robot ends it with an error; the recording is written either way. Before the first \
+live push, read the README's checklist (calibration, workspace box, table height, \
+emergency stop in reach).
+
 Examples:
   riseg run --scene data/sim23/scene_004 --out out/pred
   riseg run --dataset data/sim23 --out out/pred && riseg eval --gt data/sim23 --pred out/pred
   riseg run --dataset data/packed --flow-dir data/packed --out out/exact   (exact flow)
   riseg run --dataset data/real --flow-dir raft --static-dir msmformer --out out/learned
-  riseg run --dataset data/real --segmenter msmformer.onnx --flow raft.onnx --out out/onnx";
+  riseg run --dataset data/real --segmenter msmformer.onnx --flow raft.onnx --out out/onnx
+  riseg run --live --camera sim --robot sim --seed 3 --out out/live
+  riseg run --live --camera realsense --robot franka --calib hand_eye.json --dry-run --out out/rig";
 
     #[derive(Debug, Args)]
-    #[command(group(clap::ArgGroup::new("input").required(true).args(["scene", "dataset"])))]
+    #[command(group(clap::ArgGroup::new("input").required(true).args(["scene", "dataset", "live"])))]
     pub(in crate::cli) struct RunArgs {
         /// One scene folder.
         #[arg(long, value_name = "DIR")]
@@ -359,6 +372,12 @@ Examples:
         /// A dataset: every scene_* folder in it.
         #[arg(long, value_name = "DIR")]
         dataset: Option<PathBuf>,
+        /// Run the loop on devices (--camera, --robot) and record it: the recording goes to
+        /// OUT/scene_live/, its masks to OUT/pred/scene_live/label/.
+        #[arg(long, conflicts_with_all = ["flow_dir", "static_dir"])]
+        live: bool,
+        #[command(flatten)]
+        live_args: crate::cli::live::LiveArgs,
         /// Output folder: masks go to OUT/<scene name>/label/NNNNNN.png.
         #[arg(long, value_name = "PRED")]
         out: PathBuf,
@@ -378,6 +397,10 @@ Examples:
     }
 
     pub(in crate::cli) fn command(args: &RunArgs) -> anyhow::Result<()> {
+        if args.live {
+            let settings = args.config.load()?.settings();
+            return crate::cli::live::command(&args.live_args, &settings, &args.out);
+        }
         let scenes = match (&args.scene, &args.dataset) {
             (Some(scene), _) => vec![scene.clone()],
             (None, Some(dataset)) => {

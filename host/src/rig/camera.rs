@@ -75,6 +75,14 @@ pub trait Camera {
     fn capture(&mut self) -> Result<CameraFrame, CameraError>;
 }
 
+/// A borrowed camera is a camera (wrappers such as
+/// [`RecordingCamera`](crate::rig::record::RecordingCamera) can borrow the device).
+impl<C: Camera + ?Sized> Camera for &mut C {
+    fn capture(&mut self) -> Result<CameraFrame, CameraError> {
+        (**self).capture()
+    }
+}
+
 /// A recorded scene played back frame by frame (frame `t` is the scene after `t` pushes).
 #[derive(Debug, Clone)]
 pub struct SceneReplay<'a> {

@@ -211,10 +211,8 @@ fn step(
     labels_t1: &mut [u16],
     counts: &mut Counts,
 ) -> Result<StepReport, Failure> {
-    let intrinsics = scene::intrinsics(WIDTH, HEIGHT)?;
-    let (rendered, insns) =
-        clock.measure(|| scene::touching_boxes(WIDTH, HEIGHT, intrinsics, images))?;
-    rendered?;
+    let (rendered, insns) = clock.measure(|| scene::touching_boxes(WIDTH, HEIGHT, images))?;
+    let intrinsics = rendered?;
     counts.scene = insns;
     let input = MotionInput::new(
         ImageView::packed(WIDTH, HEIGHT, &*images.merged_t)?,

@@ -59,13 +59,7 @@ impl SyntheticTabletop {
         if width == 0 || height == 0 {
             return Err(riseg_core::Error::BadConfig);
         }
-        let f = 615.0 * width as f32 / 640.0;
-        let intrinsics = Intrinsics::new(
-            f,
-            f,
-            (width as f32 - 1.0) / 2.0,
-            (height as f32 - 1.0) / 2.0,
-        )?;
+        let intrinsics = riseg_core::synth::d415_like_camera(width, height)?;
         // Camera axes in the table frame: x right, y down the image, z forward.
         let tilt = TILT_DEG.to_radians();
         let centre = [0.0, -CAMERA_HEIGHT_M * tilt.tan(), CAMERA_HEIGHT_M];

@@ -2,11 +2,10 @@
 //! comparisons: touching box tops in a row, all merged into one segment, with exact depth
 //! and flow from [`riseg_core::synth`].
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use riseg_core::{
     Error, ImageView, Intrinsics,
     frames::MotionInput,
-    synth::{Moment, SynthBox, SynthScene},
+    synth::{Moment, TouchingBoxes},
 };
 
 /// One step's inputs at `width × height`, owned.
@@ -35,53 +34,16 @@ pub struct SyntheticStep {
 }
 
 impl SyntheticStep {
-    /// Five touching box tops 60 cm from the camera: the first stays, the others slide or
-    /// turn a little (up to 1.2 cm, 8°), as after a 2 cm push.
+    /// riseg-core's [`TouchingBoxes`]: five touching box tops 60 cm from the camera; the
+    /// first stays, the others slide or turn a little (up to 1.2 cm, 8°), as after a 2 cm
+    /// push.
     ///
     /// # Errors
-    /// Only if `width·height` overflows.
+    /// If `width·height` overflows or the width is too small for a camera.
     pub fn touching_boxes(width: usize, height: usize) -> Result<Self, Error> {
-        let f = 615.0 * width as f32 / 640.0;
-        let intrinsics = Intrinsics::new(
-            f,
-            f,
-            (width as f32 - 1.0) / 2.0,
-            (height as f32 - 1.0) / 2.0,
-        )?;
-        let facing_camera =
-            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), core::f32::consts::PI);
-        let motions = [
-            (0.0, 0.0, 0.0),
-            (0.0, 0.012, 0.0),
-            (0.0, 0.0, 8f32.to_radians()),
-            (0.006, -0.004, -5f32.to_radians()),
-            (0.0, 0.0, 0.0),
-        ];
-        let boxes: Vec<SynthBox> = motions
-            .iter()
-            .enumerate()
-            .map(|(i, &(dx, dy, angle))| {
-                let centre = Vector3::new((i as f32 - 2.0) * 0.07, 0.0, 0.6 - 0.004 * i as f32);
-                let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle);
-                let spin = Isometry3::from_parts(Translation3::from(centre - turn * centre), turn);
-                SynthBox {
-                    camera_from_box: Isometry3::from_parts(
-                        Translation3::from(centre),
-                        facing_camera,
-                    ),
-                    half_extent_m: [0.035, 0.05],
-                    motion: Translation3::new(dx, dy, 0.0) * spin,
-                    label: i as u16 + 1,
-                }
-            })
-            .collect();
-        let scene = SynthScene {
-            boxes: &boxes,
-            table_depth_m: 0.66,
-            intrinsics,
-            width,
-            height,
-        };
+        let boxes = TouchingBoxes::new(width, height)?;
+        let scene = boxes.scene();
+        let intrinsics = boxes.intrinsics;
         let n = width.checked_mul(height).ok_or(Error::BadImageLayout)?;
         let mut step = Self {
             width,

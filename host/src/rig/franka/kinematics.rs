@@ -10,9 +10,10 @@
 //! - [`check`] tracks a planned 1 kHz path from the robot's measured joint positions with
 //!   damped-least-squares differential IK, joint 3 (the elbow's position) held
 //!   ([`HELD_JOINT`]: the driver commands no elbow, so the robot resolves the redundancy
-//!   itself; holding the elbow is this check's assumption), and refuses, never clips: a start pose the kinematics do
-//!   not reproduce (not a Panda, or another end effector), a sample the IK cannot reach
-//!   within [`TRACK_TOL_M`] / [`TRACK_TOL_RAD`], and any joint position, velocity,
+//!   itself; holding the elbow is this check's assumption), and refuses, never clips: a
+//!   start pose the kinematics do not reproduce within [`START_TOL_M`] / [`START_TOL_RAD`]
+//!   (not a Panda, or another end effector), a sample the IK cannot reach within
+//!   [`TRACK_TOL_M`] / [`TRACK_TOL_RAD`], and any joint position, velocity,
 //!   acceleration or jerk (backward differences, at rest before and after) at or beyond
 //!   the Panda's published limits. A refusal names the joint, the sample's time, the value
 //!   and the limit.
@@ -71,14 +72,16 @@ pub const HELD_JOINT: usize = 2;
 pub const TRACK_TOL_M: f64 = 1e-4;
 /// Largest orientation error of a tracked sample, rad.
 pub const TRACK_TOL_RAD: f64 = 1e-3;
-/// Largest disagreement between the kinematics and the robot's reported start pose
-/// (position metres, orientation rad).
-pub const START_TOL: (f64, f64) = (1e-3, 1e-2);
+/// Largest distance between the kinematics' and the robot's reported start position, metres.
+pub const START_TOL_M: f64 = 1e-3;
+/// Largest angle between the kinematics' and the robot's reported start orientation, rad.
+pub const START_TOL_RAD: f64 = 1e-2;
 /// Damping of the least-squares step (metres and radians mixed, as usual).
 const DAMPING: f64 = 1e-3;
-/// Residuals at which a sample's Newton steps stop (metres, rad): at 1 kHz, a position
+/// Position residual at which a sample's Newton steps stop, metres: at 1 kHz, a position
 /// noise of 1e-10 m is a jerk noise under 1 m/s³.
 const CONVERGED_M: f64 = 1e-10;
+/// Orientation residual at which a sample's Newton steps stop, rad.
 const CONVERGED_RAD: f64 = 1e-9;
 /// Newton steps per sample at most.
 const MAX_STEPS: usize = 20;
@@ -113,12 +116,14 @@ pub enum JointRefused {
     },
     /// A joint breaks one of its limits.
     #[error(
-        "joint {joint} {what} {value:.4} at t = {time_s:.3} s is beyond the Panda's limit {limit:.4}"
+        "joint {joint} {what} {value:.4} at t = {time_s:.3} s is beyond the Panda's limit \
+         {limit:.4}"
     )]
     Limit {
         /// The joint, 1 to 7.
         joint: usize,
-        /// `"position (rad)"`, `"velocity (rad/s)"`, `"acceleration (rad/s²)"` or `"jerk (rad/s³)"`.
+        /// `"position (rad)"`, `"velocity (rad/s)"`, `"acceleration (rad/s²)"` or
+        /// `"jerk (rad/s³)"`.
         what: &'static str,
         /// The sample's time from the start of the push, seconds.
         time_s: f64,
@@ -354,7 +359,7 @@ pub fn check(
     let start = ee_pose(q0_rad, f_t_ee);
     let e = pose_error(&start, o_t_ee);
     let (position_m, rotation_rad) = (e.fixed_rows::<3>(0).norm(), e.fixed_rows::<3>(3).norm());
-    if !within(position_m, START_TOL.0) || !within(rotation_rad, START_TOL.1) {
+    if !within(position_m, START_TOL_M) || !within(rotation_rad, START_TOL_RAD) {
         return Err(JointRefused::StartMismatch {
             position_m,
             rotation_rad,
@@ -557,14 +562,16 @@ mod tests {
         let mut step = [0.0; 7];
         step[4] = 3e-3;
         let err = check_limits(&q0, &ramp(step, 10)).unwrap_err();
-        assert!(
-            matches!(
-                err,
-                JointRefused::Limit { joint: 5, what: "velocity (rad/s)", time_s: 0.0, value, limit: 2.61 }
-                    if (value - 3.0).abs() < 1e-9
-            ),
-            "{err}"
-        );
+        let JointRefused::Limit {
+            joint: 5,
+            what: "velocity (rad/s)",
+            value,
+            ..
+        } = err
+        else {
+            panic!("{err}");
+        };
+        assert!((value - 3.0).abs() < 1e-9, "{err}");
         assert_eq!(
             err.to_string(),
             "joint 5 velocity (rad/s) 3.0000 at t = 0.000 s is beyond the Panda's limit 2.6100"

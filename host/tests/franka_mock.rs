@@ -376,7 +376,9 @@ fn a_push_past_the_panda_joint_limits_is_refused_before_any_motion_command() {
     let mut robot = connect_with(port, limits(), brisk);
     let err = robot.execute(&push(0.5)).unwrap_err().to_string();
     assert!(
-        err.contains("push refused: joint ") && err.contains("beyond the Panda's limit"),
+        err.contains("push refused: joint ")
+            && err.contains(" s is beyond the Panda's limit ")
+            && err.contains("at t = "),
         "{err}"
     );
     drop(robot);

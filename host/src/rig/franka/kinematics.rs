@@ -129,7 +129,7 @@ pub enum JointRefused {
         time_s: f64,
         /// The value.
         value: f64,
-        /// The limit it reaches or passes.
+        /// The limit it reaches or passes (a rate limit with the value's sign).
         limit: f64,
     },
 }
@@ -334,7 +334,8 @@ pub fn check_limits(q0_rad: &[f64; 7], path_rad: &[[f64; 7]]) -> Result<(), Join
                 ),
             ] {
                 if value.is_nan() || value.abs() >= limit {
-                    return Err(refuse(what, value, limit));
+                    // Signed like the value: "-12.66 beyond the limit -12.5".
+                    return Err(refuse(what, value, limit.copysign(value)));
                 }
             }
         }

@@ -1,15 +1,20 @@
 //! The Franka driver against a mock robot on loopback that speaks the FCI subset it uses
 //! (TCP `Connect` and `Move`, UDP `RobotState` / `RobotCommand`, riseg's
 //! `rig::franka::protocol`) and records every commanded pose: the path, its limits, the
-//! refusal of an out-of-workspace push before anything is sent, and clear errors on a lost
-//! connection, a reflex mid-push, a robot already in error and another protocol version.
+//! refusal before anything is sent of a push out of the workspace, past the Panda's joint
+//! limits or out of its reach, and clear errors on a lost connection, a reflex mid-push, a
+//! robot already in error and another protocol version. The mock reports the joint
+//! positions, `F_T_EE` and pose of a Panda with a Franka Hand at its ready pose.
 
 #![allow(
     clippy::unwrap_used,
     reason = "test helpers: a panic is the failure report"
 )]
 
-use core::time::Duration;
+use core::{
+    f64::consts::{FRAC_1_SQRT_2, FRAC_PI_2, FRAC_PI_4},
+    time::Duration,
+};
 use std::{
     io::{ErrorKind, Read, Write},
     net::{TcpListener, UdpSocket},
@@ -48,10 +53,47 @@ struct Seen {
     finished: Vec<usize>,
 }
 
-/// The robot's idle pose: tool pointing down (x flipped), at (0.45, 0, 0.40).
+/// The robot's idle joint positions: Franka's ready pose.
+const READY_RAD: [f64; 7] = [
+    0.0,
+    -FRAC_PI_4,
+    0.0,
+    -3.0 * FRAC_PI_4,
+    0.0,
+    FRAC_PI_2,
+    FRAC_PI_4,
+];
+
+/// `F_T_EE` of the Franka Hand (column-major): 10.34 cm along the flange's z, turned
+/// -45° about it.
+fn hand() -> [f64; 16] {
+    let h = FRAC_1_SQRT_2;
+    [
+        h, -h, 0.0, 0.0, h, h, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.1034, 1.0,
+    ]
+}
+
+/// The robot's idle pose `O_T_EE` (column-major) at [`READY_RAD`] with [`hand`]: tool
+/// pointing down (x flipped), at (0.3069, 0, 0.4869), as a Panda reports it. Computed
+/// independently of riseg (numpy on franka_description's URDF chain).
 fn home() -> [f64; 16] {
     [
-        1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.45, 0.0, 0.40, 1.0,
+        1.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        -1.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        -1.0,
+        0.0,
+        0.3068905666,
+        0.0,
+        0.4868820523,
+        1.0,
     ]
 }
 
@@ -95,6 +137,10 @@ fn mock(fault: Fault) -> (u16, JoinHandle<Seen>) {
         let mut state = State {
             message_id: 0,
             o_t_ee: home(),
+            // The mock does not move its joints: every push returns home, where they are
+            // right again before the next push reads them.
+            f_t_ee: hand(),
+            q_rad: READY_RAD,
             o_t_ee_c: home(),
             errors: [false; ERROR_COUNT],
             robot_mode: if fault == Fault::ErrorAtStart {
@@ -219,15 +265,21 @@ fn limits() -> PushLimits {
 }
 
 fn connect(port: u16) -> Franka {
-    let mut config = FrankaConfig::new("127.0.0.1", limits());
-    config.command_port = port;
-    // Brisker than the default so the test streams a few thousand samples, not tens.
-    config.motion = MotionLimits {
+    // Brisker than the default so the test streams a few thousand samples, not tens
+    // (3 m/s² would already take joint 2 past its acceleration limit on the descent).
+    let motion = MotionLimits {
         max_vel_m_per_s: 0.5,
-        max_acc_m_per_s2: 5.0,
+        max_acc_m_per_s2: 2.0,
         max_jerk_m_per_s3: 500.0,
         hover_m: 0.1,
     };
+    connect_with(port, limits(), motion)
+}
+
+fn connect_with(port: u16, limits: PushLimits, motion: MotionLimits) -> Franka {
+    let mut config = FrankaConfig::new("127.0.0.1", limits);
+    config.command_port = port;
+    config.motion = motion;
     config.state_timeout_ms = 200;
     Franka::connect(config).unwrap()
 }
@@ -309,6 +361,49 @@ fn an_out_of_workspace_push_is_refused_before_anything_is_sent() {
     drop(robot);
     let seen = server.join().unwrap();
     assert_eq!((seen.moves, seen.poses.len()), (0, 0));
+}
+
+#[test]
+fn a_push_past_the_panda_joint_limits_is_refused_before_any_motion_command() {
+    let (port, server) = mock(Fault::None);
+    // Within Franka's Cartesian limits (1.7 m/s, 13 m/s², 6500 m/s³), too hard on the joints.
+    let brisk = MotionLimits {
+        max_vel_m_per_s: 1.6,
+        max_acc_m_per_s2: 12.0,
+        max_jerk_m_per_s3: 6000.0,
+        hover_m: 0.1,
+    };
+    let mut robot = connect_with(port, limits(), brisk);
+    let err = robot.execute(&push(0.5)).unwrap_err().to_string();
+    assert!(
+        err.contains("push refused: joint ")
+            && err.contains(" s is beyond the Panda's limit ")
+            && err.contains("at t = "),
+        "{err}"
+    );
+    drop(robot);
+    let seen = server.join().unwrap();
+    assert_eq!((seen.moves, seen.poses.len()), (0, 0), "nothing was sent");
+}
+
+#[test]
+fn a_push_out_of_the_arm_s_reach_is_refused_before_any_motion_command() {
+    let (port, server) = mock(Fault::None);
+    // A workspace box drawn wider than the arm reaches (the shoulder is at 0.333 m).
+    let wide = PushLimits {
+        workspace_min_m: [0.3, -0.25, 0.0],
+        workspace_max_m: [1.3, 0.25, 0.3],
+        max_push_len_m: 0.06,
+    };
+    let mut robot = connect_with(port, wide, MotionLimits::default());
+    let err = robot.execute(&push(1.1)).unwrap_err().to_string();
+    assert!(
+        err.contains("push refused: the path is not reachable"),
+        "{err}"
+    );
+    drop(robot);
+    let seen = server.join().unwrap();
+    assert_eq!((seen.moves, seen.poses.len()), (0, 0), "nothing was sent");
 }
 
 #[test]

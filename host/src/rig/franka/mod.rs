@@ -11,22 +11,26 @@
 //!   error or reflex state (naming the mode and the active error numbers), plans the push
 //!   from the last commanded pose ([`trajectory::plan`]: hover, descend, push, lift,
 //!   return, orientation held) and checks every 1 kHz sample against the workspace box and
-//!   the velocity, acceleration and jerk limits ([`trajectory::check`]) before anything is
-//!   sent. Only then it sends `Move` (Cartesian pose generator, joint impedance) and
-//!   answers each state with the next pose, the last one flagged as finished, and waits
-//!   for the robot's `Move` result.
+//!   the velocity, acceleration and jerk limits ([`trajectory::check`]), then tracks the
+//!   path in joint space from the measured joint positions and checks every sample for
+//!   reachability and against the Panda's joint position, velocity, acceleration and jerk
+//!   limits ([`kinematics::check`]), before anything is sent. Only then it sends `Move`
+//!   (Cartesian pose generator, joint impedance) and answers each state with the next
+//!   pose, the last one flagged as finished, and waits for the robot's `Move` result.
 //! - A state that does not arrive within [`FrankaConfig::state_timeout_ms`], a closed
 //!   command connection, a reflex during the motion or any `Move` result but success is a
 //!   [`RobotError`] naming the robot's address and the cause; the loop stops on it. The
 //!   robot itself stops a motion whose commands stop arriving (FCI's communication
 //!   constraints), so a lost client never leaves the arm moving.
 //!
-//! Not covered: joint limits (the client has no kinematics; the robot checks its joints
-//! itself and aborts with a reflex, reported as above) and stopping a push half-way (it
-//! lasts a few seconds; the arm's stop button is the immediate stop). The robot's own settings (collision thresholds, impedance, end-effector
-//! frame and load) are left as Desk configured them; set them in Desk before the first
-//! live push.
+//! Not covered: stopping a push half-way (it lasts a few seconds; the arm's stop button is
+//! the immediate stop), and the robot's own inverse kinematics: the joint check follows
+//! the path with its own (joint 3 held), so if the robot resolves the redundancy
+//! otherwise and comes closer to a limit, the push may still end in a reflex, reported as
+//! above. The robot's own settings (collision thresholds, impedance, end-effector frame and load)
+//! are left as Desk configured them; set them in Desk before the first live push.
 
+pub mod kinematics;
 pub mod protocol;
 pub mod trajectory;
 
@@ -284,6 +288,13 @@ impl Robot for Franka {
             .map_err(|e| self.error(&format!("push refused: {e}")))?;
         trajectory::check(&traj, &self.config.limits, &self.config.motion)
             .map_err(|e| self.error(&format!("push refused: {e}")))?;
+        kinematics::check(
+            &s.q_rad,
+            &matrix(&s.f_t_ee),
+            &matrix(&s.o_t_ee),
+            &traj.positions_m,
+        )
+        .map_err(|e| self.error(&format!("push refused: {e}")))?;
         let poses: Vec<[f64; 16]> = traj
             .positions_m
             .iter()

@@ -128,6 +128,10 @@ const fn state_array_offset(index: usize) -> usize {
 
 /// Offset of `O_T_EE` (measured pose, column-major 4x4).
 pub const STATE_O_T_EE: usize = state_array_offset(0);
+/// Offset of `F_T_EE` (end effector in the flange frame, column-major 4x4).
+pub const STATE_F_T_EE: usize = state_array_offset(2);
+/// Offset of `q` (measured joint positions, rad).
+pub const STATE_Q: usize = state_array_offset(17);
 /// Offset of `O_T_EE_c` (last commanded pose, column-major 4x4).
 pub const STATE_O_T_EE_C: usize = state_array_offset(34);
 /// Offset of `motion_generator_mode: u8`, after the last double array.
@@ -221,6 +225,10 @@ pub struct State {
     pub message_id: u64,
     /// Measured end-effector pose, column-major.
     pub o_t_ee: [f64; 16],
+    /// The end effector in the flange frame (as set in Desk), column-major.
+    pub f_t_ee: [f64; 16],
+    /// Measured joint positions, rad.
+    pub q_rad: [f64; 7],
     /// Last commanded end-effector pose, column-major: where a motion starts.
     pub o_t_ee_c: [f64; 16],
     /// Which of libfranka's 41 errors are active.
@@ -241,6 +249,8 @@ impl State {
         Some(Self {
             message_id: u64::from_le_bytes(id),
             o_t_ee: doubles(b, STATE_O_T_EE),
+            f_t_ee: doubles(b, STATE_F_T_EE),
+            q_rad: doubles(b, STATE_Q),
             o_t_ee_c: doubles(b, STATE_O_T_EE_C),
             errors: core::array::from_fn(|i| b[STATE_ERRORS + i] != 0),
             robot_mode: b[STATE_ROBOT_MODE],
@@ -253,8 +263,10 @@ impl State {
         let mut b = vec![0u8; STATE_LEN];
         b[..8].copy_from_slice(&self.message_id.to_le_bytes());
         for (offset, m) in [
-            (STATE_O_T_EE, &self.o_t_ee),
-            (STATE_O_T_EE_C, &self.o_t_ee_c),
+            (STATE_O_T_EE, &self.o_t_ee[..]),
+            (STATE_F_T_EE, &self.f_t_ee[..]),
+            (STATE_Q, &self.q_rad[..]),
+            (STATE_O_T_EE_C, &self.o_t_ee_c[..]),
         ] {
             for (i, v) in m.iter().enumerate() {
                 b[offset + 8 * i..offset + 8 * i + 8].copy_from_slice(&v.to_le_bytes());
@@ -315,6 +327,13 @@ mod tests {
         // Sums written out from the header, independently of the table above.
         assert_eq!(STATE_ARRAY_NAMES[34], "O_T_EE_c");
         assert_eq!(STATE_O_T_EE, 8);
+        assert_eq!(
+            (STATE_ARRAY_NAMES[2], STATE_F_T_EE),
+            ("F_T_EE", 8 + 8 * 2 * 16)
+        );
+        // O_T_EE .. NE_T_EE; m_ee .. F_x_Cload; elbow, elbow_d; tau_J, tau_J_d, dtau_J.
+        let before_q = 6 * 16 + (1 + 9 + 3) * 2 + 2 * 2 + 3 * 7;
+        assert_eq!((STATE_ARRAY_NAMES[17], STATE_Q), ("q", 8 + 8 * before_q));
         // O_T_EE .. NE_T_EE; m_ee, I_ee, F_x_Cee, m_load, I_load, F_x_Cload; elbow,
         // elbow_d; tau_J .. joint_contact (nine 7-arrays); cartesian_contact,
         // joint_collision, cartesian_collision; tau_ext_hat_filtered; O_F_ext_hat_K,
@@ -340,6 +359,8 @@ mod tests {
         let s = State {
             message_id: 9,
             o_t_ee: core::array::from_fn(|i| i as f64),
+            f_t_ee: core::array::from_fn(|i| 100.0 + i as f64),
+            q_rad: core::array::from_fn(|i| 0.1 * i as f64),
             o_t_ee_c: core::array::from_fn(|i| -(i as f64)),
             errors,
             robot_mode: 4,

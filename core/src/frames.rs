@@ -413,7 +413,6 @@ fn build_frame(
     let o = samples.get(i)?;
     let k = &input.intrinsics;
     let max_side = cfg.frame_max_side_m;
-    let min_side = cfg.frame_min_side_m;
     // Points within max_side of the origin are at most this many pixels away.
     let near_z = (o.p_t.z - max_side).max(1e-3);
     let reach = max_side * k.fx.max(k.fy) / near_z + 1.0;
@@ -432,9 +431,41 @@ fn build_frame(
             && (i64::from(s.px[0]) - ox).abs() <= reach_px
             && s.px != o.px
     };
+    // The window is scanned twice (second and third point); list its candidates once when
+    // they fit on the stack, else scan it again.
+    let mut listed = [0u32; CANDIDATES_ON_STACK];
+    let mut count = 0;
+    for (k, s) in window.iter().enumerate() {
+        if candidate(s) {
+            match listed.get_mut(count) {
+                Some(slot) => *slot = k as u32,
+                None => return best_triangle(o, window.iter().filter(|s| candidate(s)), cfg),
+            }
+            count += 1;
+        }
+    }
+    let listed = listed.get(..count).unwrap_or(&[]);
+    best_triangle(
+        o,
+        listed.iter().filter_map(|&k| window.get(k as usize)),
+        cfg,
+    )
+}
 
+/// Most candidates [`build_frame`] lists on the stack (4 bytes each).
+const CANDIDATES_ON_STACK: usize = 256;
+
+/// The frame on origin `o` and the best two of `candidates` (samples of its segment near
+/// it), or `None` if no good triangle exists.
+fn best_triangle<'s>(
+    o: &'s FrameSample,
+    candidates: impl Iterator<Item = &'s FrameSample> + Clone,
+    cfg: &Config,
+) -> Option<BodyFrame> {
+    let max_side = cfg.frame_max_side_m;
+    let min_side = cfg.frame_min_side_m;
     let mut best_j: Option<(&FrameSample, Real)> = None;
-    for s in window.iter().filter(|s| candidate(s)) {
+    for s in candidates.clone() {
         let d = (s.p_t - o.p_t).norm();
         if d >= min_side && d <= max_side && best_j.is_none_or(|(_, bd)| d > bd) {
             best_j = Some((s, d));
@@ -443,7 +474,7 @@ fn build_frame(
     let (j, dj) = best_j?;
     let a = j.p_t - o.p_t;
     let mut best_k: Option<(&FrameSample, Real)> = None;
-    for s in window.iter().filter(|s| candidate(s) && s.px != j.px) {
+    for s in candidates.filter(|s| s.px != j.px) {
         let b = s.p_t - o.p_t;
         let db = b.norm();
         let djk = (s.p_t - j.p_t).norm();

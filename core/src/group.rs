@@ -171,66 +171,81 @@ pub fn group_frames(
     let bin_width = cfg.kde_range_m / KDE_BINS as Real;
     let bins_per_m = 1.0 / bin_width;
     let mut hist = [[0u32; KDE_BINS]; 2];
-    let mut pair = 0;
+    let mut rows = pair_bin.iter_mut();
     for (i, ((ti, li), &mi)) in twists.iter().zip(labels).zip(links.iter()).enumerate() {
         let rest = twists.iter().zip(labels).zip(links.iter()).skip(i + 1);
-        for ((tj, lj), &mj) in rest {
+        for (((tj, lj), &mj), slot) in rest.zip(rows.by_ref()) {
             let across = li != lj;
             // Across segments only pairs of moving frames are data.
-            let code = if across && (mi & mj) == 0 {
+            *slot = if across && (mi & mj) == 0 {
                 NO_PAIR
             } else {
                 // NaN fails the comparison and lands in the last bin.
                 let b = ti.distance(tj, scale) * bins_per_m;
                 let b = if b < KDE_BINS as Real {
-                    b as usize
+                    b as u8
                 } else {
-                    KDE_BINS - 1
+                    KDE_BINS as u8 - 1
                 };
-                if let Some(h) = hist[usize::from(across)].get_mut(b) {
-                    *h += 1;
-                }
-                b as u8 | if across { ACROSS } else { 0 }
+                b | if across { ACROSS } else { 0 }
             };
-            if let Some(slot) = pair_bin.get_mut(pair) {
-                *slot = code;
-            }
-            pair += 1;
+        }
+    }
+    for &code in pair_bin.iter() {
+        if code != NO_PAIR
+            && let Some(h) =
+                hist[usize::from(code & ACROSS != 0)].get_mut(usize::from(code & !ACROSS))
+        {
+            *h += 1;
         }
     }
 
     let (posterior, split) = posterior_table(&hist, cfg);
-    // Frames link inside one segment only; across pairs inform the KDE and priors.
-    let linked = |code: u8| match code {
-        NO_PAIR => None,
-        c if c & ACROSS != 0 => None,
-        c => {
-            let p = posterior[usize::from(c) % KDE_BINS];
-            (p > cfg.link_posterior).then_some(p)
-        }
-    };
+    // Frames link inside one segment only; across pairs inform the KDE and priors. A
+    // frame attaches only within a few bandwidths: a frame whose twist flow noise put
+    // between two bodies' twists links to both, and the whole sparser body would chain
+    // through it into the denser one if its mode could point that far. Both decisions
+    // are per pair code, so they are tabled once.
+    let nearness = |code: u8| code & !ACROSS;
+    let attach_bins = (ATTACH_BANDWIDTHS * cfg.kde_bandwidth_m * bins_per_m) as u8;
+    let mut links_at = [false; 256];
+    let mut attaches_at = [false; 256];
+    for (code, (link, attach)) in links_at.iter_mut().zip(attaches_at.iter_mut()).enumerate() {
+        let code = code as u8;
+        *link = code != NO_PAIR
+            && code & ACROSS == 0
+            && posterior[usize::from(code) % KDE_BINS] > cfg.link_posterior;
+        *attach = *link && nearness(code) <= attach_bins;
+    }
 
     // Pass 2: density of each frame = its number of links.
     let density = links;
     density.fill(0);
-    for_each_pair(n, pair_bin, |i, j, code| {
-        if linked(code).is_some() {
-            bump(density, i);
-            bump(density, j);
+    let mut start = 0;
+    for i in 0..n {
+        let len = n - i - 1;
+        let (Some(row), Some(later)) = (pair_bin.get(start..start + len), density.get_mut(i + 1..))
+        else {
+            break;
+        };
+        let mut own = 0u32;
+        for (&code, d) in row.iter().zip(later) {
+            let link = u32::from(links_at[usize::from(code)]);
+            own += link;
+            *d += link;
         }
-    });
+        if let Some(d) = density.get_mut(i) {
+            *d += own;
+        }
+        start += len;
+    }
     // Pass 3 (quick shift): each frame points at its nearest linked frame of higher
     // density; ties in distance go to the denser frame. Only a mode has no such frame.
     let rank =
         |density: &[u32], i: usize| (density.get(i).copied().unwrap_or(0), u32::MAX - i as u32);
-    let nearness = |code: u8| code & !ACROSS;
-    // A frame attaches only within a few bandwidths: a frame whose twist flow noise put
-    // between two bodies' twists links to both, and the whole sparser body would chain
-    // through it into the denser one if its mode could point that far.
-    let attach_bins = (ATTACH_BANDWIDTHS * cfg.kde_bandwidth_m * bins_per_m) as u8;
     attach.fill(NONE);
     for_each_pair(n, pair_bin, |i, j, code| {
-        if linked(code).is_none() || nearness(code) > attach_bins {
+        if !attaches_at[usize::from(code)] {
             return;
         }
         let (low, high) = if rank(density, i) < rank(density, j) {
@@ -431,12 +446,16 @@ fn bump(counts: &mut [u32], i: usize) {
 
 /// Calls `f(i, j, code)` for every pair `i < j` in the order pass 1 stored them.
 fn for_each_pair(n: usize, pair_bin: &[u8], mut f: impl FnMut(usize, usize, u8)) {
-    let mut codes = pair_bin.iter();
+    let mut start = 0;
     for i in 0..n {
-        for j in i + 1..n {
-            let Some(&code) = codes.next() else { return };
-            f(i, j, code);
+        let len = n - i - 1;
+        let Some(row) = pair_bin.get(start..start + len) else {
+            return;
+        };
+        for (k, &code) in row.iter().enumerate() {
+            f(i, i + 1 + k, code);
         }
+        start += len;
     }
 }
 

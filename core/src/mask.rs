@@ -271,11 +271,15 @@ pub fn correct_mask(
 
     // 5. Label.
     let (next, split_segments) = label_split_segments(seeds, count)?;
+    let mut last: (u32, &[SegmentSeeds]) = (0, &[]);
     for ((out, &seg), &c) in labels_t1.iter_mut().zip(segment.iter()).zip(claim.iter()) {
         *out = seg as u16;
         if c != 0 {
+            if last.0 != seg || last.1.is_empty() {
+                last = (seg, groups_in(seeds, seg));
+            }
             let g = u32::from(c - 1);
-            if let Some(entry) = groups_in(seeds, seg).iter().find(|s| s.group == g) {
+            if let Some(entry) = last.1.iter().find(|s| s.group == g) {
                 *out = entry.label as u16;
             }
         }
@@ -344,18 +348,21 @@ impl Grid {
     }
 
     /// The 4-neighbours of packed pixel `p` inside the image: `(index, packed)`.
+    #[inline]
     fn neighbours(&self, p: u32) -> impl Iterator<Item = (usize, u32)> {
         let (x, y) = Self::unpack(p);
         let i = y * self.width + x;
         let w = self.width;
-        [
-            (x > 0).then(|| (i.wrapping_sub(1), p.wrapping_sub(1))),
-            (x + 1 < w).then(|| (i + 1, p + 1)),
-            (y > 0).then(|| (i.wrapping_sub(w), p.wrapping_sub(1 << 16))),
-            (y + 1 < self.height).then(|| (i + w, p + (1 << 16))),
-        ]
-        .into_iter()
-        .flatten()
+        let inside = [x > 0, x + 1 < w, y > 0, y + 1 < self.height];
+        let near = [
+            (i.wrapping_sub(1), p.wrapping_sub(1)),
+            (i + 1, p + 1),
+            (i.wrapping_sub(w), p.wrapping_sub(1 << 16)),
+            (i + w, p + (1 << 16)),
+        ];
+        near.into_iter()
+            .zip(inside)
+            .filter_map(|(n, inside)| inside.then_some(n))
     }
 }
 
@@ -517,6 +524,8 @@ fn grow_regions(
         }
         best.1
     };
+    // Pixels are queued segment by segment, so the last segment's entries are cached.
+    let mut last: (u32, &[SegmentSeeds]) = (0, &[]);
     while head < tail {
         let Some(&p) = queue.get(head) else { break };
         head += 1;
@@ -524,7 +533,10 @@ fn grow_regions(
         let (Some(&seg), Some(&mine)) = (segment.get(i), claim.get(i)) else {
             continue;
         };
-        let candidates = groups_in(seeds, seg);
+        if last.0 != seg || last.1.is_empty() {
+            last = (seg, groups_in(seeds, seg));
+        }
+        let candidates = last.1;
         for (j, pj) in grid.neighbours(p) {
             if segment.get(j) != Some(&seg) || claim.get(j) != Some(&0) {
                 continue;
@@ -626,7 +638,10 @@ fn splat(input: &MotionInput<'_>, depth_bits: &mut [u32], source: &mut [u32], ca
             continue;
         };
         for (x, ((&label, &z), &[dx, dy])) in labels.iter().zip(depths).zip(flows).enumerate() {
-            let Some(z) = valid_depth(z).filter(|_| label != 0) else {
+            if label == 0 {
+                continue;
+            }
+            let Some(z) = valid_depth(z) else {
                 continue;
             };
             let (u, v) = (round(x as Real + dx), round(y as Real + dy));
@@ -648,7 +663,14 @@ fn splat(input: &MotionInput<'_>, depth_bits: &mut [u32], source: &mut [u32], ca
 
 /// 4-connected components of equal non-zero `key`, then components smaller than `min_px`
 /// join their largest neighbour. Writes final segment ids (`1..=count`, `0` background)
-/// to `segment` and each segment's key to `segs.key`.
+/// to `segment` and each segment's key to `segs.key`. Ids increase in scan order of each
+/// component's first pixel. `queue` is scratch of one entry per pixel.
+///
+/// Two passes (union-find over provisional labels), not a flood fill: a pixel takes its
+/// left or upper neighbour's provisional label when the keys match, and the two labels
+/// unite when both match. The smaller label stays the root, and labels are made in scan
+/// order, so each component's root is the label of its first pixel and every parent
+/// link points to a smaller label.
 fn label_segments(
     grid: Grid,
     key: &[u32],
@@ -657,85 +679,194 @@ fn label_segments(
     queue: &mut [u32],
     segs: &mut Segments<'_>,
 ) -> Result<usize, Error> {
-    segment.fill(0);
-    let mut count = 0usize;
-    for (start, &k) in key.iter().enumerate() {
-        if k == 0 || segment.get(start) != Some(&0) {
-            continue;
-        }
-        count += 1;
-        if count > MAX_SEGMENTS {
-            return Err(Error::TooManyLabels);
-        }
-        let id = count as u32;
-        let (mut head, mut tail) = (0, 0);
-        if let (Some(s), Some(q)) = (segment.get_mut(start), queue.get_mut(0)) {
-            *s = id;
-            *q = Grid::pack(start % grid.width, start / grid.width);
-            tail = 1;
-        }
-        while head < tail {
-            let Some(&p) = queue.get(head) else { break };
-            head += 1;
-            for (j, pj) in grid.neighbours(p) {
-                if segment.get(j) == Some(&0)
-                    && key.get(j) == Some(&k)
-                    && let (Some(s), Some(q)) = (segment.get_mut(j), queue.get_mut(tail))
-                {
-                    *s = id;
-                    *q = pj;
-                    tail += 1;
-                }
-            }
-        }
-        if let (Some(size), Some(kk)) = (segs.size.get_mut(count), segs.key.get_mut(count)) {
-            *size = tail as u32;
-            *kk = k;
-        }
+    let width = grid.width;
+    let n = (width * grid.height).min(key.len()).min(segment.len());
+    let (Some(key), Some(segment)) = (key.get(..n), segment.get_mut(..n)) else {
+        return Ok(0);
+    };
+    let parent = queue;
+    if width == 0 || parent.len() < n {
+        return Ok(0);
     }
-    // Largest neighbour of each small segment; merges only go to a (size, id)-larger
-    // segment, so following targets always ends.
-    let ranked = |segs: &Segments<'_>, s: u32| (segs.size.get(s as usize).copied().unwrap_or(0), s);
-    for t in segs.target.iter_mut().take(count + 1) {
-        *t = NONE;
-    }
-    for i in 0..segment.len().min(grid.width * grid.height) {
-        let a = segment.get(i).copied().unwrap_or(0);
-        if a == 0 {
-            continue;
-        }
-        let right = (i % grid.width + 1 < grid.width).then(|| i + 1);
-        let down = Some(i + grid.width);
-        for j in [right, down].into_iter().flatten() {
-            let Some(&b) = segment.get(j) else { continue };
-            if a == b || a == 0 || b == 0 {
+    // Pass 1: provisional labels (from 1; 0 is background) into `segment`; the parent of
+    // label `l` is `parent[l - 1]`.
+    let mut made = 0u32;
+    for y in 0..grid.height {
+        let row = y * width;
+        let (above, here) = segment.split_at_mut(row);
+        let above = above.get(row.saturating_sub(width)..).filter(|_| y > 0);
+        let (Some(here), Some(keys)) = (here.get_mut(..width), key.get(row..row + width)) else {
+            break;
+        };
+        let keys_above = key.get(row.saturating_sub(width)..row).filter(|_| y > 0);
+        let mut left = (0u32, 0u32); // (key, provisional label) of the pixel to the left
+        for (x, (l, &k)) in here.iter_mut().zip(keys).enumerate() {
+            if k == 0 {
+                *l = 0;
+                left = (0, 0);
                 continue;
             }
-            for (small, big) in [(a, b), (b, a)] {
-                let small_size = segs.size.get(small as usize).copied().unwrap_or(0);
-                if small_size >= min_px || ranked(segs, big) <= ranked(segs, small) {
-                    continue;
+            let up = match (keys_above, above) {
+                (Some(ka), Some(la)) if ka.get(x) == Some(&k) => la.get(x).copied().unwrap_or(0),
+                _ => 0,
+            };
+            let from_left = if left.0 == k { left.1 } else { 0 };
+            let label = match (from_left, up) {
+                (0, 0) => {
+                    made += 1;
+                    if let Some(p) = parent.get_mut(made as usize - 1) {
+                        *p = made;
+                    }
+                    made
                 }
-                let current = segs.target.get(small as usize).copied().unwrap_or(NONE);
-                if (current == NONE || ranked(segs, big) > ranked(segs, current))
-                    && let Some(t) = segs.target.get_mut(small as usize)
-                {
-                    *t = big;
+                (a, 0) | (0, a) => a,
+                (a, b) => {
+                    if a != b {
+                        unite(parent, a, b);
+                    }
+                    a
+                }
+            };
+            *l = label;
+            left = (k, label);
+        }
+    }
+    // Final ids in order of the roots (first pixels in scan order); parents are smaller,
+    // so a parent's slot already holds its final id when a label is reached.
+    let mut count = 0usize;
+    for p in 1..=made {
+        let Some(&up) = parent.get(p as usize - 1) else {
+            break;
+        };
+        let id = if up == p {
+            count += 1;
+            count as u32
+        } else {
+            parent
+                .get((up as usize).wrapping_sub(1))
+                .copied()
+                .unwrap_or(0)
+        };
+        if let Some(slot) = parent.get_mut(p as usize - 1) {
+            *slot = id;
+        }
+    }
+    if count > MAX_SEGMENTS {
+        return Err(Error::TooManyLabels);
+    }
+    for t in segs.size.iter_mut().take(count + 1) {
+        *t = 0;
+    }
+    for (s, &k) in segment.iter_mut().zip(key) {
+        if *s != 0 {
+            *s = parent.get(*s as usize - 1).copied().unwrap_or(0);
+            if let Some(size) = segs.size.get_mut(*s as usize) {
+                *size += 1;
+            }
+            if let Some(kk) = segs.key.get_mut(*s as usize) {
+                *kk = k;
+            }
+        }
+    }
+    join_small_segments(grid, segment, count, min_px, segs);
+    Ok(count)
+}
+
+/// Unites the sets of provisional labels `a` and `b` (parent of `l` at `parent[l - 1]`);
+/// the smaller root stays the root.
+fn unite(parent: &mut [u32], a: u32, b: u32) {
+    let root = |parent: &mut [u32], mut l: u32| {
+        // Path halving; parents are smaller labels, so this ends.
+        while let Some(&p) = parent.get((l as usize).wrapping_sub(1)) {
+            if p == l {
+                break;
+            }
+            let grand = parent
+                .get((p as usize).wrapping_sub(1))
+                .copied()
+                .unwrap_or(p);
+            if let Some(slot) = parent.get_mut(l as usize - 1) {
+                *slot = grand;
+            }
+            l = grand;
+        }
+        l
+    };
+    let (ra, rb) = (root(parent, a), root(parent, b));
+    if let Some(slot) = parent.get_mut((ra.max(rb) as usize).wrapping_sub(1)) {
+        *slot = ra.min(rb);
+    }
+}
+
+/// Components smaller than `min_px` join their largest neighbouring component, by
+/// (size, id); merges only go to a larger component, so following targets always ends.
+fn join_small_segments(
+    grid: Grid,
+    segment: &mut [u32],
+    count: usize,
+    min_px: u32,
+    segs: &mut Segments<'_>,
+) {
+    let sizes = segs.size.get(..=count).unwrap_or(&[]);
+    if !sizes.iter().skip(1).any(|&s| s < min_px) {
+        return;
+    }
+    let target = segs.target.get_mut(..=count).unwrap_or(&mut []);
+    target.fill(NONE);
+    let ranked = |s: u32| (sizes.get(s as usize).copied().unwrap_or(0), s);
+    let mut offer = |a: u32, b: u32| {
+        for (small, big) in [(a, b), (b, a)] {
+            if ranked(small).0 >= min_px || ranked(big) <= ranked(small) {
+                continue;
+            }
+            if let Some(t) = target.get_mut(small as usize)
+                && (*t == NONE || ranked(big) > ranked(*t))
+            {
+                *t = big;
+            }
+        }
+    };
+    let width = grid.width.max(1);
+    for (y, row) in segment.chunks(width).enumerate() {
+        for pair in row.windows(2) {
+            if let [a, b] = *pair
+                && a != b
+                && a != 0
+                && b != 0
+            {
+                offer(a, b);
+            }
+        }
+        if let Some(below) = segment.get((y + 1) * width..(y + 2) * width) {
+            for (&a, &b) in row.iter().zip(below) {
+                if a != b && a != 0 && b != 0 {
+                    offer(a, b);
                 }
             }
+        }
+    }
+    // Follow each chain once per segment (targets of smaller ids are final by then),
+    // then relabel pixels.
+    if let Some(t) = target.get_mut(0) {
+        *t = 0;
+    }
+    for s in 1..=count as u32 {
+        let mut id = s;
+        for _ in 0..=count {
+            match target.get(id as usize) {
+                Some(&t) if t != NONE && t != id => id = t,
+                _ => break,
+            }
+        }
+        if let Some(t) = target.get_mut(s as usize) {
+            *t = id;
         }
     }
     for s in segment.iter_mut() {
-        let mut id = *s;
-        while let Some(&t) = segs.target.get(id as usize) {
-            if t == NONE || id == 0 {
-                break;
-            }
-            id = t;
+        if let Some(&t) = target.get(*s as usize) {
+            *s = t;
         }
-        *s = id;
     }
-    Ok(count)
 }
 
 /// Step 2's fragment rule: a component of (carried, static) keeps its own segment only
@@ -1214,5 +1345,102 @@ mod tests {
             Err(Error::TooManyLabels)
         );
         assert!(label_split_segments(&mut seeds, MAX_SEGMENTS - 1).is_ok());
+    }
+
+    /// The flood fill `label_segments` replaced: components in scan order by breadth-first
+    /// search, then each small component joins its largest (size, id) neighbour.
+    /// Returns the component count (before joining) and the segment ids.
+    fn flood_fill_reference(width: usize, key: &[u32], min_px: u32) -> (usize, Vec<u32>) {
+        let height = key.len() / width;
+        let mut segment = vec![0u32; key.len()];
+        let mut size = vec![0u32; 1];
+        for start in 0..key.len() {
+            if key[start] == 0 || segment[start] != 0 {
+                continue;
+            }
+            let id = size.len() as u32;
+            let mut queue = vec![start];
+            segment[start] = id;
+            let mut head = 0;
+            while head < queue.len() {
+                let i = queue[head];
+                head += 1;
+                let (x, y) = (i % width, i / width);
+                let mut near = Vec::new();
+                if x > 0 {
+                    near.push(i - 1);
+                }
+                if x + 1 < width {
+                    near.push(i + 1);
+                }
+                if y > 0 {
+                    near.push(i - width);
+                }
+                if y + 1 < height {
+                    near.push(i + width);
+                }
+                for j in near {
+                    if segment[j] == 0 && key[j] == key[start] {
+                        segment[j] = id;
+                        queue.push(j);
+                    }
+                }
+            }
+            size.push(queue.len() as u32);
+        }
+        let ranked = |s: u32| (size[s as usize], s);
+        let mut target: Vec<Option<u32>> = vec![None; size.len()];
+        for i in 0..key.len() {
+            let (x, y) = (i % width, i / width);
+            let right = (x + 1 < width).then(|| i + 1);
+            let down = (y + 1 < height).then(|| i + width);
+            for j in [right, down].into_iter().flatten() {
+                let (a, b) = (segment[i], segment[j]);
+                if a == 0 || b == 0 || a == b {
+                    continue;
+                }
+                for (small, big) in [(a, b), (b, a)] {
+                    let better = target[small as usize].is_none_or(|t| ranked(big) > ranked(t));
+                    if size[small as usize] < min_px && ranked(big) > ranked(small) && better {
+                        target[small as usize] = Some(big);
+                    }
+                }
+            }
+        }
+        let joined = segment
+            .iter()
+            .map(|&s| {
+                let mut id = s;
+                while let Some(t) = target[id as usize] {
+                    id = t;
+                }
+                id
+            })
+            .collect();
+        (size.len() - 1, joined)
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn two_pass_labelling_matches_a_flood_fill(
+            width in 1usize..24,
+            cells in proptest::collection::vec(0u32..4, 1..400),
+            min_px in 0u32..6,
+        ) {
+            let height = cells.len() / width;
+            proptest::prop_assume!(height > 0);
+            let key = &cells[..width * height];
+            let n = key.len();
+            let (mut segment, mut queue) = (vec![0u32; n], vec![0u32; n]);
+            let (mut size, mut target, mut seg_key) =
+                (vec![0u32; MAX_SEGMENTS + 1], vec![0u32; MAX_SEGMENTS + 1], vec![0u32; MAX_SEGMENTS + 1]);
+            let mut segs = Segments { size: &mut size, target: &mut target, key: &mut seg_key };
+            let count =
+                label_segments(Grid { width, height }, key, min_px, &mut segment, &mut queue, &mut segs)
+                    .unwrap();
+            let (expected_count, expected) = flood_fill_reference(width, key, min_px);
+            proptest::prop_assert_eq!(count, expected_count);
+            proptest::prop_assert_eq!(&segment, &expected);
+        }
     }
 }

@@ -27,7 +27,7 @@ use nalgebra::{Point3, Vector3};
 use crate::{
     Config, Error, ImageView, Intrinsics, Twist,
     error::{Buffer, check_len},
-    image::valid_depth,
+    image::{MAX_DEPTH_M, valid_depth},
     math::{Real, floor},
     rng::Pcg32,
     se3::{spatial_twist, try_frame_from_points},
@@ -245,19 +245,53 @@ pub fn compute_twists(
     Ok(())
 }
 
-/// Calls `f(x, y, label, depth_m)` for every labelled pixel with a depth reading at `t`,
-/// in row-major order; stops early when `f` returns `false`.
-fn for_each_eligible(input: &MotionInput<'_>, mut f: impl FnMut(usize, usize, u16, Real) -> bool) {
+/// Pixels counted at once when skipping ahead to the next sample.
+const SKIP_CHUNK_PX: usize = 64;
+
+/// Eligible pixels (labelled, with a depth reading at `t`) among a run of a row. Counts
+/// without branches so that it vectorises; the same test as [`valid_depth`].
+fn count_eligible(labels: &[u16], depths: &[f32]) -> u64 {
+    let eligible =
+        |(&label, &z): (&u16, &f32)| u32::from((label != 0) & (z > 0.0) & (z <= MAX_DEPTH_M));
+    u64::from(labels.iter().zip(depths).map(eligible).sum::<u32>())
+}
+
+/// Calls `f(x, y, label, depth_m)` for the eligible pixel (labelled, with a depth reading
+/// at `t`) of rank `from` in row-major order, then for the one of the rank `f` returns
+/// (larger), and so on until `f` returns `None`; runs of pixels before the wanted rank are
+/// counted in bulk, not visited.
+fn for_each_eligible_from(
+    input: &MotionInput<'_>,
+    mut from: u64,
+    mut f: impl FnMut(usize, usize, u16, Real) -> Option<u64>,
+) {
+    let mut rank = 0u64;
     for y in 0..input.size().1 {
         let (Some(labels), Some(depths)) = (input.labels_t.row(y), input.depth_t.row(y)) else {
             return;
         };
-        for (x, (&label, &z)) in labels.iter().zip(depths).enumerate() {
-            if label != 0
-                && let Some(z) = valid_depth(z)
-                && !f(x, y, label, z)
-            {
-                return;
+        for (c, (labels, depths)) in labels
+            .chunks(SKIP_CHUNK_PX)
+            .zip(depths.chunks(SKIP_CHUNK_PX))
+            .enumerate()
+        {
+            let here = count_eligible(labels, depths);
+            if rank + here <= from {
+                rank += here;
+                continue;
+            }
+            for (i, (&label, &z)) in labels.iter().zip(depths).enumerate() {
+                if label == 0 {
+                    continue;
+                }
+                let Some(z) = valid_depth(z) else { continue };
+                if rank == from {
+                    match f(c * SKIP_CHUNK_PX + i, y, label, z) {
+                        Some(next) => from = next,
+                        None => return,
+                    }
+                }
+                rank += 1;
             }
         }
     }
@@ -266,10 +300,11 @@ fn for_each_eligible(input: &MotionInput<'_>, mut f: impl FnMut(usize, usize, u1
 /// Stratified seeded sampling; returns how many samples were written (sorted row-major).
 fn sample_pixels(input: &MotionInput<'_>, cfg: &Config, out: &mut [FrameSample]) -> usize {
     let mut total: u64 = 0;
-    for_each_eligible(input, |_, _, _, _| {
-        total += 1;
-        true
-    });
+    for y in 0..input.size().1 {
+        if let (Some(labels), Some(depths)) = (input.labels_t.row(y), input.depth_t.row(y)) {
+            total += count_eligible(labels, depths);
+        }
+    }
     let want = (out.len() as u64).min(total);
     if want == 0 {
         return 0;
@@ -282,21 +317,18 @@ fn sample_pixels(input: &MotionInput<'_>, cfg: &Config, out: &mut [FrameSample])
         lo + u64::from(rng.below(u32::try_from(hi - lo).unwrap_or(u32::MAX)))
     };
     let mut taken: u64 = 0;
-    let mut next = target(0, &mut rng);
-    let mut rank: u64 = 0;
+    let first = target(0, &mut rng);
     let k = &input.intrinsics;
-    for_each_eligible(input, |x, y, label, z| {
-        if rank == next {
-            if let Some(slot) = out.get_mut(taken as usize) {
-                let (u, v) = (x as Real, y as Real);
-                let z = local_depth(&input.depth_t, u, v, cfg).unwrap_or(z);
-                *slot = track(input, cfg, x, y, label, k.back_project(u, v, z));
-            }
-            taken += 1;
-            next = target(taken, &mut rng);
+    // Called exactly at each drawn rank; returns the next one (ranks only grow: stratum
+    // i+1 starts where stratum i ends).
+    for_each_eligible_from(input, first, |x, y, label, z| {
+        if let Some(slot) = out.get_mut(taken as usize) {
+            let (u, v) = (x as Real, y as Real);
+            let z = local_depth(&input.depth_t, u, v, cfg).unwrap_or(z);
+            *slot = track(input, cfg, x, y, label, k.back_project(u, v, z));
         }
-        rank += 1;
-        taken < want
+        taken += 1;
+        (taken < want).then(|| target(taken, &mut rng))
     });
     taken as usize
 }
@@ -665,5 +697,57 @@ mod tests {
             .err(),
             Some(Error::SizeMismatch)
         );
+    }
+
+    proptest::proptest! {
+        /// The chunk-skipping sampler draws exactly the pixels a plain scan over the list
+        /// of eligible pixels draws, for any mask, depth holes and seed.
+        #[test]
+        fn sampling_draws_the_ranks_a_plain_scan_draws(
+            width in 1usize..150,
+            cells in proptest::collection::vec((0u16..3, 0u8..4), 1..3000),
+            n in 1usize..60,
+            seed: u64,
+        ) {
+            let height = cells.len() / width;
+            proptest::prop_assume!(height > 0);
+            let cells = &cells[..width * height];
+            let labels: std::vec::Vec<u16> = cells.iter().map(|c| c.0).collect();
+            // Depth: a reading, none, NaN or beyond the maximum.
+            let depth: std::vec::Vec<f32> = cells
+                .iter()
+                .map(|c| [0.6, 0.0, f32::NAN, 1e3][usize::from(c.1)])
+                .collect();
+            let flow = vec![[0.0f32; 2]; cells.len()];
+            let input = MotionInput::new(
+                ImageView::packed(width, height, &labels).unwrap(),
+                ImageView::packed(width, height, &depth).unwrap(),
+                ImageView::packed(width, height, &depth).unwrap(),
+                ImageView::packed(width, height, &flow).unwrap(),
+                Intrinsics::new(500.0, 500.0, 0.5 * width as f32, 0.5 * height as f32).unwrap(),
+            )
+            .unwrap();
+            let mut cfg = Config::PAPER;
+            cfg.seed = seed;
+            let mut out = vec![FrameSample::EMPTY; n];
+            let got = sample_pixels(&input, &cfg, &mut out);
+
+            let eligible: std::vec::Vec<[u32; 2]> = (0..cells.len())
+                .filter(|&i| labels[i] != 0 && valid_depth(depth[i]).is_some())
+                .map(|i| [(i % width) as u32, (i / width) as u32])
+                .collect();
+            let total = eligible.len() as u64;
+            let want = (n as u64).min(total);
+            let mut rng = Pcg32::new(seed);
+            let expected: std::vec::Vec<[u32; 2]> = (0..want)
+                .map(|i| {
+                    let (lo, hi) = (i * total / want, (i + 1) * total / want);
+                    eligible[(lo + u64::from(rng.below((hi - lo) as u32))) as usize]
+                })
+                .collect();
+            proptest::prop_assert_eq!(got as u64, want);
+            let drawn: std::vec::Vec<[u32; 2]> = out[..got].iter().map(|s| s.px).collect();
+            proptest::prop_assert_eq!(drawn, expected);
+        }
     }
 }

@@ -700,6 +700,9 @@ fn label_segments(
         };
         let keys_above = key.get(row.saturating_sub(width)..row).filter(|_| y > 0);
         let mut left = (0u32, 0u32); // (key, provisional label) of the pixel to the left
+        // The label above last united with (or taken by) the current run: runs above
+        // repeat one label over many pixels, so each pair of runs unites once.
+        let mut joined_up = 0u32;
         for (x, (l, &k)) in here.iter_mut().zip(keys).enumerate() {
             if k == 0 {
                 *l = 0;
@@ -710,22 +713,22 @@ fn label_segments(
                 (Some(ka), Some(la)) if ka.get(x) == Some(&k) => la.get(x).copied().unwrap_or(0),
                 _ => 0,
             };
-            let from_left = if left.0 == k { left.1 } else { 0 };
-            let label = match (from_left, up) {
-                (0, 0) => {
-                    made += 1;
-                    if let Some(p) = parent.get_mut(made as usize - 1) {
-                        *p = made;
-                    }
-                    made
+            let label = if left.0 == k {
+                if up != 0 && up != left.1 && up != joined_up {
+                    unite(parent, left.1, up);
+                    joined_up = up;
                 }
-                (a, 0) | (0, a) => a,
-                (a, b) => {
-                    if a != b {
-                        unite(parent, a, b);
-                    }
-                    a
+                left.1
+            } else if up != 0 {
+                joined_up = up;
+                up
+            } else {
+                made += 1;
+                if let Some(p) = parent.get_mut(made as usize - 1) {
+                    *p = made;
                 }
+                joined_up = 0;
+                made
             };
             *l = label;
             left = (k, label);

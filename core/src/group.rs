@@ -243,7 +243,10 @@ pub fn group_frames(
     // density; ties in distance go to the denser frame. Only a mode has no such frame.
     let rank =
         |density: &[u32], i: usize| (density.get(i).copied().unwrap_or(0), u32::MAX - i as u32);
+    // `parent` is free until the union below: it holds the nearness of each frame's
+    // current attachment, so comparing with it needs no look-up of that pair's code.
     attach.fill(NONE);
+    let attached_near = &mut *parent;
     for_each_pair(n, pair_bin, |i, j, code| {
         if !attaches_at[usize::from(code)] {
             return;
@@ -253,17 +256,17 @@ pub fn group_frames(
         } else {
             (j, i)
         };
-        let Some(current) = attach.get(low).copied() else {
+        let (Some(current), Some(&d_old)) = (attach.get(low).copied(), attached_near.get(low))
+        else {
             return;
         };
+        let d_new = u32::from(nearness(code));
         let better = current == NONE
-            || pair_code(pair_bin, n, low, current as usize).is_none_or(|c| {
-                let (d_new, d_old) = (nearness(code), nearness(c));
-                d_new < d_old
-                    || (d_new == d_old && rank(density, high) > rank(density, current as usize))
-            });
-        if better && let Some(a) = attach.get_mut(low) {
+            || d_new < d_old
+            || (d_new == d_old && rank(density, high) > rank(density, current as usize));
+        if better && let (Some(a), Some(d)) = (attach.get_mut(low), attached_near.get_mut(low)) {
             *a = high as u32;
+            *d = d_new;
         }
     });
     for (i, p) in parent.iter_mut().enumerate() {
@@ -457,17 +460,6 @@ fn for_each_pair(n: usize, pair_bin: &[u8], mut f: impl FnMut(usize, usize, u8))
         }
         start += len;
     }
-}
-
-/// The stored code of pair `{a, b}` (`a != b`).
-fn pair_code(pair_bin: &[u8], n: usize, a: usize, b: usize) -> Option<u8> {
-    let (i, j) = if a < b { (a, b) } else { (b, a) };
-    if i == j || j >= n {
-        return None;
-    }
-    // Pairs (i, ·) start after the i rows before it: i·n − i(i+1)/2.
-    let start = i * n - i * (i + 1) / 2;
-    pair_bin.get(start + (j - i - 1)).copied()
 }
 
 fn find(parent: &mut [u32], mut i: usize) -> u32 {
@@ -828,7 +820,7 @@ mod tests {
     }
 
     #[test]
-    fn pair_codes_are_found_where_pass_one_wrote_them() {
+    fn pairs_are_visited_with_the_codes_pass_one_wrote_for_them() {
         let n = 7;
         let mut bins = vec![0u8; n * (n - 1) / 2];
         let mut k = 0;
@@ -838,10 +830,14 @@ mod tests {
                 k += 1;
             }
         }
-        assert_eq!(pair_code(&bins, n, 2, 5), Some(25));
-        assert_eq!(pair_code(&bins, n, 6, 0), Some(6));
-        assert_eq!(pair_code(&bins, n, 3, 3), None);
-        assert_eq!(pair_code(&bins, n, 3, 9), None);
+        let mut seen = vec![];
+        for_each_pair(n, &bins, |i, j, code| seen.push((i, j, code)));
+        assert_eq!(seen.len(), bins.len());
+        assert!(
+            seen.iter()
+                .all(|&(i, j, code)| i < j && usize::from(code) == 10 * i + j)
+        );
+        assert!(seen.windows(2).all(|w| (w[0].0, w[0].1) < (w[1].0, w[1].1)));
     }
 
     #[test]

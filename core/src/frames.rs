@@ -376,9 +376,19 @@ fn local_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, cfg: &Config) -> Op
     // Normal equations of the plane fit, in offsets from (u, v) and from z_ref.
     let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     let (mut sz, mut sxz, mut syz) = (0.0, 0.0, 0.0);
-    for y in yc - r..=yc + r {
-        for x in xc - r..=xc + r {
-            let Some(z) = depth.at(x, y).and_then(valid_depth) else {
+    // The window clipped to the image, walked as row slices (same order as pixel by pixel).
+    let (width, height) = depth.size();
+    let x_lo = (xc - r).max(0);
+    let x_hi = (xc + r).min(width as i64 - 1);
+    for y in (yc - r).max(0)..=(yc + r).min(height as i64 - 1) {
+        let Some(run) = depth
+            .row(y as usize)
+            .and_then(|row| row.get(x_lo as usize..=x_hi as usize))
+        else {
+            continue;
+        };
+        for (x, &z) in (x_lo..).zip(run) {
+            let Some(z) = valid_depth(z) else {
                 continue;
             };
             let dz = z - z_ref;

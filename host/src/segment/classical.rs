@@ -115,7 +115,7 @@ impl ClassicalSegmenter {
 
         geometry::back_project(frame, intrinsics, &mut s.raw);
         geometry::smooth_points(w, h, &s.raw, p, &mut s.smooth, &mut s.pts);
-        geometry::normals(w, h, &s.pts, p, &mut s.nrm);
+        geometry::normals(w, h, &s.smooth.planes, p, &mut s.nrm);
         let table = fit_table(w, h, &s.pts, &s.nrm, p, &mut s.plane)?;
         let px_per_m2 = 1.0 / (intrinsics.fx * intrinsics.fy);
         for (a, q) in s.px_area_m2.iter_mut().zip(&s.pts) {

@@ -11,6 +11,7 @@
 //! centre's; for the normals and creases (`r` pixels apart), within `r` times that.
 
 use super::{RgbdFrame, SegmenterParams};
+use crate::par::*;
 use riseg_core::Intrinsics;
 
 /// Crease flag: a concave bend sharper than `crease_soft_deg` (heatmap source).
@@ -56,22 +57,136 @@ pub(super) fn back_project(frame: &RgbdFrame<'_>, k: &Intrinsics, out: &mut [P3]
     }
 }
 
+/// The smoothed points of every row as three planes (x, y, z), each `pad` zero pixels
+/// wider on both sides than the image: what [`normals`] reads, with no bounds tests at the
+/// image's left and right edges (a padding pixel has no reading).
+#[derive(Debug, Default)]
+pub(super) struct RowPlanes {
+    pad: usize,
+    /// Padded row width, `w + 2·pad`.
+    wp: usize,
+    /// Row `y` at `3·wp·y`: x plane, y plane, z plane.
+    data: Vec<f32>,
+}
+
+impl RowPlanes {
+    fn resize(&mut self, w: usize, h: usize, pad: usize) {
+        self.pad = pad;
+        self.wp = w + 2 * pad;
+        self.data.clear();
+        self.data.resize(3 * self.wp * h, 0.0);
+    }
+
+    /// Planes of row `y`, padded.
+    fn row(&self, y: usize) -> &[f32] {
+        &self.data[3 * self.wp * y..3 * self.wp * (y + 1)]
+    }
+}
+
 /// Scratch of [`smooth_points`], reused across frames.
 #[derive(Debug, Default)]
 pub(super) struct SmoothScratch {
-    /// The row pass's result.
-    tmp: Vec<P3>,
-    /// Column sums of one output row (x, y, z, count).
-    acc: Vec<[f32; 4]>,
-    /// Depth tolerance of each centre pixel of one row.
+    /// The row pass's result: per row, the x, y and z planes (`3·w` values).
+    tmp: Vec<f32>,
+    /// The smoothed points as padded row planes, for [`normals`].
+    pub(super) planes: RowPlanes,
+}
+
+/// Per-row scratch of the smoothing: a padded input row, window sums and tolerances.
+#[derive(Debug, Default)]
+struct RowScratch {
+    /// Padded row planes x, y, z of the row pass's input (`w + 2r` each).
+    row: [Vec<f32>; 3],
+    /// Window sums x, y, z and count, and each centre's depth tolerance.
+    sums: WindowSums,
+}
+
+impl RowScratch {
+    fn with_width(w: usize, r: usize) -> Self {
+        Self {
+            row: core::array::from_fn(|_| vec![0.0; w + 2 * r]),
+            sums: WindowSums {
+                acc: core::array::from_fn(|_| vec![0.0; w]),
+                jump: vec![0.0; w],
+            },
+        }
+    }
+}
+
+/// Sums of the points of a window on the centre's surface, for one row of centres.
+#[derive(Debug, Default)]
+struct WindowSums {
+    /// Sums x, y, z and count.
+    acc: [Vec<f32>; 4],
+    /// Depth tolerance of each centre pixel, infinitely negative where it has no reading.
     jump: Vec<f32>,
+}
+
+impl WindowSums {
+    /// Clears the sums and sets the tolerances from the centre depths `cz`.
+    fn start(&mut self, cz: &[f32], params: &SegmenterParams) {
+        for (j, &z) in self.jump.iter_mut().zip(cz) {
+            *j = if z > 0.0 {
+                params.depth_jump_at_m(z)
+            } else {
+                f32::NEG_INFINITY
+            };
+        }
+        for a in &mut self.acc {
+            a.fill(0.0);
+        }
+    }
+
+    /// Adds the points `(qx, qy, qz)` whose depth is within the tolerance of the centre
+    /// depth `cz` to the sums. A skipped point adds `+0.0`, which leaves a sum's bits as
+    /// they are (a sum that starts at `+0.0` is never `-0.0`), so this branch-free form
+    /// (which the compiler vectorises) sums exactly what a test per point would.
+    fn add(&mut self, qx: &[f32], qy: &[f32], qz: &[f32], cz: &[f32]) {
+        let w = self.jump.len();
+        let [sx, sy, sz, sn] = &mut self.acc;
+        let (sx, sy, sz, sn) = (&mut sx[..w], &mut sy[..w], &mut sz[..w], &mut sn[..w]);
+        let (qx, qy, qz, cz, jump) = (&qx[..w], &qy[..w], &qz[..w], &cz[..w], &self.jump[..w]);
+        for x in 0..w {
+            let m = mask((qz[x] > 0.0) & ((qz[x] - cz[x]).abs() <= jump[x]));
+            sx[x] += keep(qx[x], m);
+            sy[x] += keep(qy[x], m);
+            sz[x] += keep(qz[x], m);
+            sn[x] += keep(1.0, m);
+        }
+    }
+
+    /// The means where the centre has a reading, zero elsewhere, into `(ox, oy, oz)`.
+    fn means(&self, cz: &[f32], ox: &mut [f32], oy: &mut [f32], oz: &mut [f32]) {
+        let w = self.jump.len();
+        let [sx, sy, sz, sn] = &self.acc;
+        let (sx, sy, sz, sn, cz) = (&sx[..w], &sy[..w], &sz[..w], &sn[..w], &cz[..w]);
+        let (ox, oy, oz) = (&mut ox[..w], &mut oy[..w], &mut oz[..w]);
+        for x in 0..w {
+            let m = mask(cz[x] > 0.0);
+            ox[x] = keep(sx[x] / sn[x], m);
+            oy[x] = keep(sy[x] / sn[x], m);
+            oz[x] = keep(sz[x] / sn[x], m);
+        }
+    }
+}
+
+/// All ones if `on`, else zero: a lane mask for [`keep`].
+fn mask(on: bool) -> u32 {
+    u32::from(on).wrapping_neg()
+}
+
+/// `v` where `m` is all ones, `+0.0` where it is zero (a select the compiler vectorises).
+fn keep(v: f32, m: u32) -> f32 {
+    f32::from_bits(v.to_bits() & m)
 }
 
 /// Edge-aware smoothing of the points: the mean of the points within
 /// `smooth_radius_px` along the row whose depth is within
 /// [`SegmenterParams::depth_jump_at_m`] of the centre's, then the same along the column of
 /// that result (a separable bilateral filter with a box kernel: steps larger than the
-/// tolerance stay sharp).
+/// tolerance stay sharp). Sums run in increasing x, then y. Writes `out` and
+/// `scratch.planes` (padded by `normal_radius_px`). Rows run in parallel with the
+/// `threads` feature, with the same result.
 pub(super) fn smooth_points(
     w: usize,
     h: usize,
@@ -80,63 +195,65 @@ pub(super) fn smooth_points(
     scratch: &mut SmoothScratch,
     out: &mut [P3],
 ) {
-    let SmoothScratch { tmp, acc, jump } = scratch;
+    let SmoothScratch { tmp, planes } = scratch;
     tmp.clear();
-    tmp.resize(w * h, [0.0; 3]);
+    tmp.resize(3 * w * h, 0.0);
     let r = params.smooth_radius_px;
-    let add = |s: &mut [f32; 4], q: P3| *s = [s[0] + q[0], s[1] + q[1], s[2] + q[2], s[3] + 1.0];
-    let mean = |s: [f32; 4]| [s[0] / s[3], s[1] / s[3], s[2] / s[3]];
     // Along rows.
-    for (row_in, row_out) in raw.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
-        for (x, o) in row_out.iter_mut().enumerate() {
-            let c = row_in[x];
-            if c[2] <= 0.0 {
-                *o = [0.0; 3];
-                continue;
-            }
-            let jump = params.depth_jump_at_m(c[2]);
-            let mut sum = [0.0f32; 4];
-            for &q in &row_in[x.saturating_sub(r)..=(x + r).min(w - 1)] {
-                if q[2] > 0.0 && (q[2] - c[2]).abs() <= jump {
-                    add(&mut sum, q);
+    tmp.par_chunks_mut(3 * w).enumerate().for_each_init(
+        || RowScratch::with_width(w, r),
+        |rs, (y, t)| {
+            let RowScratch { row, sums } = rs;
+            let row_in = &raw[y * w..(y + 1) * w];
+            for (k, plane) in row.iter_mut().enumerate() {
+                for (v, q) in plane[r..r + w].iter_mut().zip(row_in) {
+                    *v = q[k];
                 }
             }
-            // sum[3] >= 1: the centre itself always qualifies.
-            *o = mean(sum);
-        }
-    }
-    // Along columns, a row at a time (contiguous memory): `acc[x]` sums column x, and
-    // `jump[x]` is the tolerance of the centre (infinitely negative where it has no reading).
-    acc.clear();
-    acc.resize(w, [0.0; 4]);
-    jump.clear();
-    jump.resize(w, 0.0);
-    for y in 0..h {
-        acc.fill([0.0; 4]);
-        let centre = &tmp[y * w..(y + 1) * w];
-        for (j, c) in jump.iter_mut().zip(centre) {
-            *j = if c[2] > 0.0 {
-                params.depth_jump_at_m(c[2])
-            } else {
-                f32::NEG_INFINITY
-            };
-        }
-        for yy in y.saturating_sub(r)..=(y + r).min(h - 1) {
-            let row = &tmp[yy * w..(yy + 1) * w];
-            for (((s, &c), &q), &j) in acc.iter_mut().zip(centre).zip(row).zip(jump.iter()) {
-                if q[2] > 0.0 && (q[2] - c[2]).abs() <= j {
-                    add(s, q);
-                }
+            let [rx, ry, rz] = &*row;
+            let cz = &rz[r..];
+            sums.start(cz, params);
+            for d in 0..=2 * r {
+                sums.add(&rx[d..], &ry[d..], &rz[d..], cz);
             }
-        }
-        for ((o, &s), &c) in out[y * w..(y + 1) * w]
-            .iter_mut()
-            .zip(acc.iter())
-            .zip(centre)
-        {
-            *o = if c[2] > 0.0 { mean(s) } else { [0.0; 3] };
-        }
-    }
+            let (tx, t) = t.split_at_mut(w);
+            let (ty, tz) = t.split_at_mut(w);
+            sums.means(cz, tx, ty, tz);
+        },
+    );
+    // Along columns.
+    let pad = params.normal_radius_px;
+    planes.resize(w, h, pad);
+    let tmp: &[f32] = tmp;
+    let wp = planes.wp;
+    planes
+        .data
+        .par_chunks_mut(3 * wp)
+        .zip(out.par_chunks_mut(w))
+        .enumerate()
+        .for_each_init(
+            || RowScratch::with_width(w, 0),
+            |RowScratch { sums, .. }, (y, (pl, o))| {
+                let centre = &tmp[3 * w * y..3 * w * (y + 1)];
+                let cz = &centre[2 * w..];
+                sums.start(cz, params);
+                for yy in y.saturating_sub(r)..=(y + r).min(h - 1) {
+                    let q = &tmp[3 * w * yy..3 * w * (yy + 1)];
+                    sums.add(&q[..w], &q[w..2 * w], &q[2 * w..], cz);
+                }
+                let (px, pl) = pl.split_at_mut(wp);
+                let (py, pz) = pl.split_at_mut(wp);
+                let (px, py, pz) = (
+                    &mut px[pad..pad + w],
+                    &mut py[pad..pad + w],
+                    &mut pz[pad..pad + w],
+                );
+                sums.means(cz, px, py, pz);
+                for (x, o) in o.iter_mut().enumerate() {
+                    *o = [px[x], py[x], pz[x]];
+                }
+            },
+        );
 }
 
 /// Clears the flags of 8-connected flagged regions (creases, steps) whose area (sum of
@@ -190,53 +307,63 @@ fn same_surface(c: P3, q: P3, sep: usize, params: &SegmenterParams) -> bool {
     q[2] > 0.0 && (q[2] - c[2]).abs() <= params.depth_jump_at_m(c[2]) * sep as f32
 }
 
-/// The difference across pixel `i` along a line with neighbours `lo` and `hi` (if they are
-/// in the image): central where both are on the surface, one-sided where one is.
-fn difference(pts: &[P3], i: usize, lo: Option<usize>, hi: Option<usize>) -> P3 {
-    let c = pts[i];
-    let on = |j: Option<usize>| j.map(|j| pts[j]).filter(|&q| q[2] > 0.0);
-    match (on(lo), on(hi)) {
-        (Some(a), Some(b)) => sub(b, a),
-        (None, Some(b)) => sub(b, c),
-        (Some(a), None) => sub(c, a),
-        (None, None) => [0.0; 3],
-    }
-}
-
 /// Unit normals facing the camera from cross products of point differences
 /// `±normal_radius_px` apart; `[0, 0, 0]` where either direction has no surface neighbour.
-pub(super) fn normals(w: usize, h: usize, pts: &[P3], params: &SegmenterParams, out: &mut [P3]) {
+///
+/// Along each direction the difference across a pixel is central where both neighbours
+/// `r` pixels away are on its surface (a reading within `r` times
+/// [`SegmenterParams::depth_jump_at_m`] of its depth), one-sided where one is. Reads the
+/// points from `planes` ([`smooth_points`]); rows run in parallel with the `threads`
+/// feature, with the same result.
+pub(super) fn normals(
+    w: usize,
+    h: usize,
+    planes: &RowPlanes,
+    params: &SegmenterParams,
+    out: &mut [P3],
+) {
     let r = params.normal_radius_px;
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            let c = pts[i];
-            out[i] = [0.0; 3];
-            if c[2] <= 0.0 {
-                continue;
-            }
-            let pick = |j: usize| Some(j).filter(|&j| same_surface(c, pts[j], r, params));
-            let left = x.checked_sub(r).and_then(|xx| pick(y * w + xx));
-            let right = Some(x + r)
-                .filter(|&xx| xx < w)
-                .and_then(|xx| pick(y * w + xx));
-            let up = y.checked_sub(r).and_then(|yy| pick(yy * w + x));
-            let down = Some(y + r)
-                .filter(|&yy| yy < h)
-                .and_then(|yy| pick(yy * w + x));
-            let du = difference(pts, i, left, right);
-            let dv = difference(pts, i, up, down);
-            let mut n = cross(dv, du);
-            let len = dot(n, n).sqrt();
-            if len.is_nan() || len <= 1e-12 {
-                continue;
-            }
-            if dot(n, c) > 0.0 {
-                n = [-n[0], -n[1], -n[2]];
-            }
-            out[i] = [n[0] / len, n[1] / len, n[2] / len];
+    let (pad, wp) = (planes.pad, planes.wp);
+    debug_assert!(pad >= r && planes.data.len() == 3 * wp * h);
+    let none = vec![0.0f32; 3 * wp];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, o)| {
+        let row = planes.row(y);
+        let up = if y >= r { planes.row(y - r) } else { &none };
+        let down = if y + r < h { planes.row(y + r) } else { &none };
+        // Plane `k` of a padded row, shifted by `dx` pixels.
+        fn at(row: &[f32], wp: usize, pad: usize, w: usize, k: usize, dx: isize) -> &[f32] {
+            let start = (k * wp + pad).wrapping_add_signed(dx);
+            &row[start..start + w]
         }
-    }
+        let at = |row, k, dx| at(row, wp, pad, w, k, dx);
+        let c = [at(row, 0, 0), at(row, 1, 0), at(row, 2, 0)];
+        let ri = r as isize;
+        let left = [at(row, 0, -ri), at(row, 1, -ri), at(row, 2, -ri)];
+        let right = [at(row, 0, ri), at(row, 1, ri), at(row, 2, ri)];
+        let up = [at(up, 0, 0), at(up, 1, 0), at(up, 2, 0)];
+        let down = [at(down, 0, 0), at(down, 1, 0), at(down, 2, 0)];
+        for (x, o) in o.iter_mut().enumerate() {
+            let p = [c[0][x], c[1][x], c[2][x]];
+            let tol = params.depth_jump_at_m(p[2]) * r as f32;
+            let on = |q: &[&[f32]; 3]| {
+                let q = [q[0][x], q[1][x], q[2][x]];
+                let on = q[2] > 0.0 && (q[2] - p[2]).abs() <= tol;
+                if on { q } else { p }
+            };
+            // Both on: b − a; one: the one-sided difference; none: p − p = 0.
+            let du = sub(on(&right), on(&left));
+            let dv = sub(on(&down), on(&up));
+            let n = cross(dv, du);
+            let len = dot(n, n).sqrt();
+            *o = if p[2] <= 0.0 || len.is_nan() || len <= 1e-12 {
+                [0.0; 3]
+            } else if dot(n, p) > 0.0 {
+                [-n[0] / len, -n[1] / len, -n[2] / len]
+            } else {
+                [n[0] / len, n[1] / len, n[2] / len]
+            };
+        }
+    });
 }
 
 /// Inputs of [`creases`]: `width·height` buffers.

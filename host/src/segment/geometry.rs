@@ -70,11 +70,15 @@ pub(super) struct RowPlanes {
 }
 
 impl RowPlanes {
+    /// Sizes the planes for `h` rows of `w` pixels padded by `pad`, zeroing them only
+    /// when the size changes: the padding is never written, the rest always.
     fn resize(&mut self, w: usize, h: usize, pad: usize) {
-        self.pad = pad;
-        self.wp = w + 2 * pad;
-        self.data.clear();
-        self.data.resize(3 * self.wp * h, 0.0);
+        if (self.pad, self.wp, self.data.len()) != (pad, w + 2 * pad, 3 * (w + 2 * pad) * h) {
+            self.pad = pad;
+            self.wp = w + 2 * pad;
+            self.data.clear();
+            self.data.resize(3 * self.wp * h, 0.0);
+        }
     }
 
     /// Planes of row `y`, padded.
@@ -196,7 +200,7 @@ pub(super) fn smooth_points(
     out: &mut [P3],
 ) {
     let SmoothScratch { tmp, planes } = scratch;
-    tmp.clear();
+    // Every value is written below.
     tmp.resize(3 * w * h, 0.0);
     let r = params.smooth_radius_px;
     // Along rows.

@@ -51,7 +51,7 @@
 
 use super::{
     HEAT_CERTAIN, HEAT_UNCERTAIN, SegmenterParams,
-    edt::{EdtScratch, squared_distance},
+    edt::{EdtScratch, Window, squared_distance},
     geometry::{CREASE_SOFT, P3},
     grow::HOLE,
 };
@@ -187,13 +187,26 @@ pub(super) fn heatmap(
     // 1c. Necks.
     necks(inp, params, &mut s.notch, &mut s.mark);
 
-    // 2. Distance to the background.
+    // 2. Distance to the background. Only segment pixels read the distances, and every
+    // source lies in the segments' bounding box: the distance to the sources is exact
+    // there over the box alone, and the distance to the background over the box grown by a
+    // pixel (a background pixel beyond it is farther than the grown box's edge, which is
+    // background, in both coordinates).
     s.d_source.resize(n, 0.0);
     s.d_background.resize(n, 0.0);
+    let Some(inner) = bounding_box(w, labels) else {
+        return;
+    };
+    let outer = Window {
+        x0: inner.x0.saturating_sub(1),
+        x1: (inner.x1 + 1).min(w),
+        y0: inner.y0.saturating_sub(1),
+        y1: (inner.y1 + 1).min(h),
+    };
     let mark = &s.mark;
     squared_distance(
         w,
-        h,
+        outer,
         |i| labels[i] == 0 && mark[i] & GAP == 0,
         &mut s.edt,
         &mut s.d_background,
@@ -204,7 +217,7 @@ pub(super) fn heatmap(
 
     // 3. Heat.
     let mark = &s.mark;
-    squared_distance(w, h, |i| mark[i] != 0, &mut s.edt, &mut s.d_source);
+    squared_distance(w, inner, |i| mark[i] != 0, &mut s.edt, &mut s.d_source);
     for (i, (&label, heat)) in labels.iter().zip(heat.iter_mut()).enumerate() {
         if label == 0 {
             if s.mark[i] & GAP != 0 {
@@ -227,6 +240,23 @@ pub(super) fn heatmap(
             HEAT_CERTAIN + (f32::from(u8::MAX - HEAT_CERTAIN) * t) as u8
         };
     }
+}
+
+/// The smallest window holding every labelled pixel; `None` if there is none.
+fn bounding_box(w: usize, labels: &[u16]) -> Option<Window> {
+    let rows = |(_, row): &(usize, &[u16])| row.iter().any(|&l| l != 0);
+    let y0 = labels.chunks_exact(w).enumerate().find(rows)?.0;
+    let y1 = labels.chunks_exact(w).enumerate().rfind(rows)?.0 + 1;
+    let (mut x0, mut x1) = (w, 0);
+    for row in labels[y0 * w..y1 * w].chunks_exact(w) {
+        if let Some(first) = row[..x0].iter().position(|&l| l != 0) {
+            x0 = first;
+        }
+        if let Some(last) = row[x1..].iter().rposition(|&l| l != 0) {
+            x1 = x1 + last + 1;
+        }
+    }
+    Some(Window { x0, x1, y0, y1 })
 }
 
 /// A unit direction and the length along it, metres.

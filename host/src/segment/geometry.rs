@@ -174,16 +174,6 @@ impl WindowSums {
     }
 }
 
-/// All ones if `on`, else zero: a lane mask for [`keep`].
-fn mask(on: bool) -> u32 {
-    u32::from(on).wrapping_neg()
-}
-
-/// `v` where `m` is all ones, `+0.0` where it is zero (a select the compiler vectorises).
-fn keep(v: f32, m: u32) -> f32 {
-    f32::from_bits(v.to_bits() & m)
-}
-
 /// Edge-aware smoothing of the points: the mean of the points within
 /// `smooth_radius_px` along the row whose depth is within
 /// [`SegmenterParams::depth_jump_at_m`] of the centre's, then the same along the column of
@@ -330,44 +320,88 @@ pub(super) fn normals(
     let (pad, wp) = (planes.pad, planes.wp);
     debug_assert!(pad >= r && planes.data.len() == 3 * wp * h);
     let none = vec![0.0f32; 3 * wp];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, o)| {
-        let row = planes.row(y);
-        let up = if y >= r { planes.row(y - r) } else { &none };
-        let down = if y + r < h { planes.row(y + r) } else { &none };
-        // Plane `k` of a padded row, shifted by `dx` pixels.
-        fn at(row: &[f32], wp: usize, pad: usize, w: usize, k: usize, dx: isize) -> &[f32] {
-            let start = (k * wp + pad).wrapping_add_signed(dx);
-            &row[start..start + w]
-        }
-        let at = |row, k, dx| at(row, wp, pad, w, k, dx);
-        let c = [at(row, 0, 0), at(row, 1, 0), at(row, 2, 0)];
-        let ri = r as isize;
-        let left = [at(row, 0, -ri), at(row, 1, -ri), at(row, 2, -ri)];
-        let right = [at(row, 0, ri), at(row, 1, ri), at(row, 2, ri)];
-        let up = [at(up, 0, 0), at(up, 1, 0), at(up, 2, 0)];
-        let down = [at(down, 0, 0), at(down, 1, 0), at(down, 2, 0)];
-        for (x, o) in o.iter_mut().enumerate() {
-            let p = [c[0][x], c[1][x], c[2][x]];
-            let tol = params.depth_jump_at_m(p[2]) * r as f32;
-            let on = |q: &[&[f32]; 3]| {
-                let q = [q[0][x], q[1][x], q[2][x]];
-                let on = q[2] > 0.0 && (q[2] - p[2]).abs() <= tol;
-                if on { q } else { p }
-            };
-            // Both on: b − a; one: the one-sided difference; none: p − p = 0.
-            let du = sub(on(&right), on(&left));
-            let dv = sub(on(&down), on(&up));
-            let n = cross(dv, du);
-            let len = dot(n, n).sqrt();
-            *o = if p[2] <= 0.0 || len.is_nan() || len <= 1e-12 {
-                [0.0; 3]
-            } else if dot(n, p) > 0.0 {
-                [-n[0] / len, -n[1] / len, -n[2] / len]
-            } else {
-                [n[0] / len, n[1] / len, n[2] / len]
-            };
-        }
-    });
+    out.par_chunks_mut(w).enumerate().for_each_init(
+        || vec![0.0f32; 3 * w],
+        |soa, (y, o)| {
+            let row = planes.row(y);
+            let up = if y >= r { planes.row(y - r) } else { &none };
+            let down = if y + r < h { planes.row(y + r) } else { &none };
+            // The x, y, z planes of a padded row, shifted by `dx` pixels.
+            fn planes_at(row: &[f32], (w, wp, pad): (usize, usize, usize), dx: isize) -> [&[f32]; 3] {
+                core::array::from_fn(|k| {
+                    let start = (k * wp + pad).wrapping_add_signed(dx);
+                    &row[start..start + w]
+                })
+            }
+            let at = |row, dx| planes_at(row, (w, wp, pad), dx);
+            let ri = r as isize;
+            let around = [at(row, -ri), at(row, ri), at(up, 0), at(down, 0)];
+            let (nx, rest) = soa.split_at_mut(w);
+            let (ny, nz) = rest.split_at_mut(w);
+            normals_row(at(row, 0), around, r, params, [nx, ny, nz]);
+            for (x, o) in o.iter_mut().enumerate() {
+                *o = [nx[x], ny[x], nz[x]];
+            }
+        },
+    );
+}
+
+/// All ones if `on`, else zero: a lane mask for [`keep`] and [`pick`].
+fn mask(on: bool) -> u32 {
+    u32::from(on).wrapping_neg()
+}
+
+/// `v` where `m` is all ones, `+0.0` where it is zero (a select the compiler vectorises).
+fn keep(v: f32, m: u32) -> f32 {
+    f32::from_bits(v.to_bits() & m)
+}
+
+/// `a` where `m` is all ones, `b` where it is zero.
+fn pick(a: f32, b: f32, m: u32) -> f32 {
+    f32::from_bits((a.to_bits() & m) | (b.to_bits() & !m))
+}
+
+/// One row of [`normals`] as planes: centres `c`, their neighbours `r` pixels to the left,
+/// right, up and down in `around`, unit normals into `out` (zero where there is none).
+/// Branch-free, so the compiler vectorises it; the same arithmetic as a test per pixel.
+fn normals_row(
+    c: [&[f32]; 3],
+    around: [[&[f32]; 3]; 4],
+    r: usize,
+    params: &SegmenterParams,
+    out: [&mut [f32]; 3],
+) {
+    let w = c[2].len();
+    let c = c.map(|s| &s[..w]);
+    let [left, right, up, down] = around.map(|q| q.map(|s| &s[..w]));
+    let [ox, oy, oz] = out;
+    let (ox, oy, oz) = (&mut ox[..w], &mut oy[..w], &mut oz[..w]);
+    for x in 0..w {
+        let p = [c[0][x], c[1][x], c[2][x]];
+        let tol = params.depth_jump_at_m(p[2]) * r as f32;
+        // A neighbour on the surface, or the centre itself.
+        let on = |q: &[&[f32]; 3]| {
+            let m = mask((q[2][x] > 0.0) & ((q[2][x] - p[2]).abs() <= tol));
+            [
+                pick(q[0][x], p[0], m),
+                pick(q[1][x], p[1], m),
+                pick(q[2][x], p[2], m),
+            ]
+        };
+        // Both on: b − a; one: the one-sided difference; none: p − p = 0.
+        let du = sub(on(&right), on(&left));
+        let dv = sub(on(&down), on(&up));
+        let n = cross(dv, du);
+        let len = dot(n, n).sqrt();
+        // No normal without a reading or for a degenerate (or NaN) cross product.
+        let ok = mask((p[2] > 0.0) & (len > 1e-12));
+        // Face the camera: flip the sign bit where `n · p > 0`.
+        let flip = mask(dot(n, p) > 0.0) & 0x8000_0000;
+        let unit = |v: f32| keep(f32::from_bits(v.to_bits() ^ flip) / len, ok);
+        ox[x] = unit(n[0]);
+        oy[x] = unit(n[1]);
+        oz[x] = unit(n[2]);
+    }
 }
 
 /// Inputs of [`creases`]: `width·height` buffers.

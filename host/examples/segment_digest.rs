@@ -160,7 +160,7 @@ fn main() {
         let frame = RgbdFrame::new(f.width, f.height, &f.rgb, &f.depth_m).expect("frame");
         let start = Instant::now();
         for _ in 0..n {
-            std::hint::black_box(seg.segment_detailed(&frame, &f.k).expect("segments"));
+            core::hint::black_box(seg.segment_detailed(&frame, &f.k).expect("segments"));
         }
         let ms = start.elapsed().as_secs_f64() * 1e3 / n as f64;
         println!("{}: {n} runs, {ms:.2} ms each", f.name);

@@ -27,7 +27,7 @@ use super::{
     geometry::{self, P3},
     grow::{GrowInput, GrowScratch, grow_segments},
     heat::{HeatInput, HeatScratch, heatmap},
-    plane::{PlaneScratch, TablePlane, fit_table},
+    plane::{PlaneScratch, TableFit, TablePlane, fit_table},
 };
 use crate::io::image::Image;
 
@@ -67,6 +67,30 @@ struct Scratch {
 pub struct ClassicalSegmenter {
     params: SegmenterParams,
     scratch: Scratch,
+}
+
+/// One row of the height test, branch-free so that the compiler vectorises it: `heat` is
+/// `⌊100 · max(0, h / h_min)⌋` for points below the object threshold, 0 elsewhere, and
+/// `object` marks points from the threshold up to `max_height_m` (the candidates of the
+/// hull test).
+fn classify_row(
+    [px, py, pz]: [&[f32]; 3],
+    table: &TableFit,
+    p: &SegmenterParams,
+    object: &mut [bool],
+    heat: &mut [u8],
+) {
+    let w = object.len();
+    let (px, py, pz, heat) = (&px[..w], &py[..w], &pz[..w], &mut heat[..w]);
+    for x in 0..w {
+        let q = [px[x], py[x], pz[x]];
+        let height = table.height_of(q);
+        let h_min = p.min_height_at_m(q[2]);
+        let below = height < h_min;
+        let value = (TABLE_HEAT_MAX * (height / h_min).max(0.0)) as u8;
+        heat[x] = if (q[2] > 0.0) & below { value } else { 0 };
+        object[x] = (q[2] > 0.0) & !below & (height <= p.max_height_m);
+    }
 }
 
 impl ClassicalSegmenter {
@@ -122,17 +146,18 @@ impl ClassicalSegmenter {
             *a = q[2] * q[2] * px_per_m2;
         }
         let mut heat = vec![0u8; n];
-        for ((&q, object), heat) in s.pts.iter().zip(&mut s.object).zip(&mut heat) {
-            *object = false;
-            if q[2] <= 0.0 {
-                continue;
-            }
-            let height = table.height_of(q);
-            let h_min = p.min_height_at_m(q[2]);
-            if height < h_min {
-                *heat = (TABLE_HEAT_MAX * (height / h_min).max(0.0)) as u8;
-            } else if height <= p.max_height_m {
-                *object = table.hull.contains(q, p.hull_margin_m);
+        for (y, (object, heat)) in s
+            .object
+            .chunks_exact_mut(w)
+            .zip(heat.chunks_exact_mut(w))
+            .enumerate()
+        {
+            let [px, py, pz] = s.smooth.planes.row_xyz(y);
+            classify_row([px, py, pz], &table, p, object, heat);
+            for (x, object) in object.iter_mut().enumerate() {
+                if *object {
+                    *object = table.hull.contains([px[x], py[x], pz[x]], p.hull_margin_m);
+                }
             }
         }
 

@@ -64,18 +64,16 @@ pub(super) fn squared_distance(
         }
     }
     // Along the rows: the lower envelope of the column distances squared.
-    out[y0 * w..y1 * w]
-        .par_chunks_mut(w)
-        .for_each_init(
-            || (vec![0.0f32; ww], vec![0usize; ww], vec![0.0f32; ww + 1]),
-            |(f, roots, bounds), row| {
-                let row = &mut row[x0..x1];
-                for (f, &d) in f.iter_mut().zip(row.iter()) {
-                    *f = d * d;
-                }
-                envelope(f, row, roots, bounds);
-            },
-        );
+    out[y0 * w..y1 * w].par_chunks_mut(w).for_each_init(
+        || (vec![0.0f32; ww], vec![0usize; ww], vec![0.0f32; ww + 1]),
+        |(f, roots, bounds), row| {
+            let row = &mut row[x0..x1];
+            for (f, &d) in f.iter_mut().zip(row.iter()) {
+                *f = d * d;
+            }
+            envelope(f, row, roots, bounds);
+        },
+    );
 }
 
 /// 1-D transform: `d[q] = min_p (q − p)² + f[p]` over finite `f[p]`; infinity if none.

@@ -81,6 +81,12 @@ impl RowPlanes {
         }
     }
 
+    /// The x, y and z planes of row `y`, without the padding.
+    pub(super) fn row_xyz(&self, y: usize) -> [&[f32]; 3] {
+        let (row, w) = (self.row(y), self.wp - 2 * self.pad);
+        core::array::from_fn(|k| &row[k * self.wp + self.pad..k * self.wp + self.pad + w])
+    }
+
     /// Planes of row `y`, padded.
     fn row(&self, y: usize) -> &[f32] {
         &self.data[3 * self.wp * y..3 * self.wp * (y + 1)]
@@ -327,7 +333,11 @@ pub(super) fn normals(
             let up = if y >= r { planes.row(y - r) } else { &none };
             let down = if y + r < h { planes.row(y + r) } else { &none };
             // The x, y, z planes of a padded row, shifted by `dx` pixels.
-            fn planes_at(row: &[f32], (w, wp, pad): (usize, usize, usize), dx: isize) -> [&[f32]; 3] {
+            fn planes_at(
+                row: &[f32],
+                (w, wp, pad): (usize, usize, usize),
+                dx: isize,
+            ) -> [&[f32]; 3] {
                 core::array::from_fn(|k| {
                     let start = (k * wp + pad).wrapping_add_signed(dx);
                     &row[start..start + w]

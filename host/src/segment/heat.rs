@@ -73,6 +73,7 @@ pub(super) struct HeatScratch {
     mean_z: Vec<(f64, u32)>,
     notch: Vec<u32>,
     moments: Vec<Moments>,
+    cuts: Vec<Option<Cut>>,
     edt: EdtScratch,
 }
 
@@ -213,7 +214,13 @@ pub(super) fn heatmap(
     );
 
     // 1d. Packs: segments larger than one object (needs the distance to the background).
-    pack_cuts(inp, params, &s.d_background, &mut s.moments, &mut s.mark);
+    pack_cuts(
+        inp,
+        params,
+        &s.d_background,
+        (&mut s.moments, &mut s.cuts),
+        &mut s.mark,
+    );
 
     // 3. Heat.
     let mark = &s.mark;
@@ -316,11 +323,14 @@ fn pack_cuts(
     inp: &HeatInput<'_>,
     params: &SegmenterParams,
     d_background: &[f32],
-    moments: &mut Vec<Moments>,
+    (moments, cuts): (&mut Vec<Moments>, &mut Vec<Option<Cut>>),
     mark: &mut [u8],
 ) {
     moments.clear();
     moments.resize(inp.segments + 1, Moments::default());
+    // Labels are `0..=segments`; label 0 is never cut.
+    cuts.clear();
+    cuts.resize(inp.segments + 1, None);
     // Points are flattened onto the table plane, so an object's sides fold onto its
     // footprint's outline and the axes measure the footprint.
     let n = inp.table_normal.map(f64::from);
@@ -376,28 +386,52 @@ fn pack_cuts(
             }
         };
         let cells = [cells_along(long_m).max(2), cells_along(short_m)];
-        for (i, (&l, &p)) in inp.labels.iter().zip(inp.pts).enumerate() {
-            if usize::from(l) != label || p[2] <= 0.0 {
-                continue;
-            }
-            // A cut is one pixel wide: within half a pixel of a cut position.
-            let half_px_m = 0.5 * f64::from(p[2] * inp.inv_focal);
-            let q = flatten(p);
-            let d = [0, 1, 2].map(|a| q[a] - centre[a]);
-            let on_cut = axes.iter().zip(cells).any(|((axis, len_m), n)| {
-                let along = d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2];
-                // Position in cells from the start of the axis.
-                let pos = (along / len_m + 0.5) * n as f64;
-                let nearest = pos.round();
-                nearest >= 1.0
-                    && nearest <= (n - 1) as f64
-                    && ((pos - nearest) * len_m / n as f64).abs() <= half_px_m
-            });
-            if on_cut {
-                mark[i] |= SOURCE;
-            }
+        cuts[label] = Some(Cut {
+            centre,
+            axes,
+            cells,
+        });
+    }
+    if cuts.iter().all(Option::is_none) {
+        return;
+    }
+    for (i, (&l, &p)) in inp.labels.iter().zip(inp.pts).enumerate() {
+        let Some(Cut {
+            centre,
+            axes,
+            cells,
+        }) = cuts.get(usize::from(l)).copied().flatten()
+        else {
+            continue;
+        };
+        if p[2] <= 0.0 {
+            continue;
+        }
+        // A cut is one pixel wide: within half a pixel of a cut position.
+        let half_px_m = 0.5 * f64::from(p[2] * inp.inv_focal);
+        let q = flatten(p);
+        let d = [0, 1, 2].map(|a| q[a] - centre[a]);
+        let on_cut = axes.iter().zip(cells).any(|((axis, len_m), n)| {
+            let along = d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2];
+            // Position in cells from the start of the axis.
+            let pos = (along / len_m + 0.5) * n as f64;
+            let nearest = pos.round();
+            nearest >= 1.0
+                && nearest <= (n - 1) as f64
+                && ((pos - nearest) * len_m / n as f64).abs() <= half_px_m
+        });
+        if on_cut {
+            mark[i] |= SOURCE;
         }
     }
+}
+
+/// The cut grid of one oversized segment: centroid, in-plane axes and cells per axis.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Cut {
+    centre: [f64; 3],
+    axes: [Axis; 2],
+    cells: [usize; 2],
 }
 
 /// Marks the necks of the segments as sources (module docs, rule 1).
@@ -409,6 +443,8 @@ fn necks(inp: &HeatInput<'_>, params: &SegmenterParams, notch: &mut Vec<u32>, ma
     // Notches: outline pixels (a 4-neighbour unlabelled or off the image) whose disc holds
     // at least `neck_notch_share` of pixels of their own segment.
     notch.clear();
+    // The last disc's radius and half-widths.
+    let mut disc: (isize, Vec<isize>) = (0, Vec::new());
     for i in 0..w * h {
         let (a, z) = (labels[i], inp.pts[i][2]);
         if a == 0 || z <= 0.0 {
@@ -427,23 +463,31 @@ fn necks(inp: &HeatInput<'_>, params: &SegmenterParams, notch: &mut Vec<u32>, ma
             continue;
         }
         let r = ((params.neck_radius_m * px_per_m(z)) as isize).clamp(1, MAX_NECK_RADIUS_PX);
+        // The disc row by row: `half[|dy|]` is its half-width at `dy`; pixels off the
+        // image count in `all`, never in `same`.
+        if disc.0 != r {
+            disc.1.clear();
+            disc.1.extend((0..=r).map(|dy| {
+                (0..=r)
+                    .rev()
+                    .find(|dx| dx * dx + dy * dy <= r * r)
+                    .unwrap_or(0)
+            }));
+            disc.0 = r;
+        }
+        let half = &disc.1;
         let (mut same, mut all) = (0u32, 0u32);
         for dy in -r..=r {
-            for dx in -r..=r {
-                if dx * dx + dy * dy > r * r {
-                    continue;
-                }
-                all += 1;
-                let (qx, qy) = (x as isize + dx, y as isize + dy);
-                if qx >= 0
-                    && qy >= 0
-                    && (qx as usize) < w
-                    && (qy as usize) < h
-                    && labels[qy as usize * w + qx as usize] == a
-                {
-                    same += 1;
-                }
+            let hw = half[dy.unsigned_abs()];
+            all += (2 * hw + 1) as u32;
+            let qy = y as isize + dy;
+            if qy < 0 || qy as usize >= h {
+                continue;
             }
+            let lo = (x as isize - hw).max(0) as usize;
+            let hi = ((x as isize + hw) as usize).min(w - 1);
+            let row = &labels[qy as usize * w..(qy as usize + 1) * w];
+            same += row[lo..=hi].iter().map(|&l| u32::from(l == a)).sum::<u32>();
         }
         if same as f32 >= params.neck_notch_share * all as f32 {
             notch.push(i as u32);

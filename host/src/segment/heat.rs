@@ -109,11 +109,27 @@ pub(super) fn heatmap(
     // Mean depth per segment, for pixels without a reading.
     s.mean_z.clear();
     s.mean_z.resize(inp.segments + 1, (0.0, 0));
-    for (l, p) in labels.iter().zip(inp.pts) {
-        if *l != 0 && p[2] > 0.0 {
-            let m = &mut s.mean_z[usize::from(*l)];
-            *m = (m.0 + f64::from(p[2]), m.1 + 1);
+    // The current label's sum stays in registers along a run of its pixels (the same
+    // additions in the same order).
+    let mut run: Option<(usize, (f64, u32))> = None;
+    for (&l, p) in labels.iter().zip(inp.pts) {
+        if l == 0 || p[2] <= 0.0 {
+            continue;
         }
+        let l = usize::from(l);
+        match &mut run {
+            Some((rl, m)) if *rl == l => *m = (m.0 + f64::from(p[2]), m.1 + 1),
+            _ => {
+                if let Some((rl, m)) = run {
+                    s.mean_z[rl] = m;
+                }
+                let m = s.mean_z[l];
+                run = Some((l, (m.0 + f64::from(p[2]), m.1 + 1)));
+            }
+        }
+    }
+    if let Some((rl, m)) = run {
+        s.mean_z[rl] = m;
     }
     let mean_z: &[(f64, u32)] = &s.mean_z;
     let depth = |i: usize| -> f32 {
@@ -135,6 +151,16 @@ pub(super) fn heatmap(
         if a == 0 {
             continue;
         }
+        let (x, y) = (i % w, i / w);
+        // Every scan stops at once where each 4-neighbour is off the image or in `a`.
+        let same = |j: usize| labels[j] == a;
+        if (x == 0 || same(i - 1))
+            && (x + 1 == w || same(i + 1))
+            && (y == 0 || same(i - w))
+            && (y + 1 == h || same(i + w))
+        {
+            continue;
+        }
         let z = depth(i);
         let m_per_px = z * inp.inv_focal;
         let gap_px = if m_per_px > 0.0 {
@@ -142,7 +168,7 @@ pub(super) fn heatmap(
         } else {
             0
         };
-        let (x, y) = ((i % w) as isize, (i / w) as isize);
+        let (x, y) = (x as isize, y as isize);
         for (dx, dy) in [(1isize, 0isize), (-1, 0), (0, 1), (0, -1)] {
             // Unlabelled pixels with depth count against the gap; holes do not.
             let mut open = gap_px;

@@ -29,7 +29,7 @@ use super::{
     heat::{HeatInput, HeatScratch, heatmap},
     plane::{PlaneScratch, TableFit, TablePlane, fit_table},
 };
-use crate::io::image::Image;
+use crate::{io::image::Image, par::*};
 
 /// Heat of background points just under the object threshold (see [`heat`](super::heat)).
 const TABLE_HEAT_MAX: f32 = 100.0;
@@ -146,20 +146,20 @@ impl ClassicalSegmenter {
             *a = q[2] * q[2] * px_per_m2;
         }
         let mut heat = vec![0u8; n];
-        for (y, (object, heat)) in s
-            .object
-            .chunks_exact_mut(w)
-            .zip(heat.chunks_exact_mut(w))
+        let planes = &s.smooth.planes;
+        s.object
+            .par_chunks_mut(w)
+            .zip(heat.par_chunks_mut(w))
             .enumerate()
-        {
-            let [px, py, pz] = s.smooth.planes.row_xyz(y);
-            classify_row([px, py, pz], &table, p, object, heat);
-            for (x, object) in object.iter_mut().enumerate() {
-                if *object {
-                    *object = table.hull.contains([px[x], py[x], pz[x]], p.hull_margin_m);
+            .for_each(|(y, (object, heat))| {
+                let [px, py, pz] = planes.row_xyz(y);
+                classify_row([px, py, pz], &table, p, object, heat);
+                for (x, object) in object.iter_mut().enumerate() {
+                    if *object {
+                        *object = table.hull.contains([px[x], py[x], pz[x]], p.hull_margin_m);
+                    }
                 }
-            }
-        }
+            });
 
         let crease_input = geometry::CreaseInput {
             w,

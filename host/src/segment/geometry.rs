@@ -41,20 +41,19 @@ pub(super) fn cross(a: P3, b: P3) -> P3 {
 pub(super) fn back_project(frame: &RgbdFrame<'_>, k: &Intrinsics, out: &mut [P3]) {
     let w = frame.width();
     let (ifx, ify) = (1.0 / k.fx, 1.0 / k.fy);
-    for (y, (row_out, row_z)) in out
-        .chunks_exact_mut(w)
-        .zip(frame.depth_m().chunks_exact(w))
+    out.par_chunks_mut(w)
+        .zip(frame.depth_m().par_chunks(w))
         .enumerate()
-    {
-        let yc = (y as f32 - k.cy) * ify;
-        for (x, (o, &z)) in row_out.iter_mut().zip(row_z).enumerate() {
-            *o = if z.is_finite() && z > 0.0 {
-                [(x as f32 - k.cx) * ifx * z, yc * z, z]
-            } else {
-                [0.0; 3]
-            };
-        }
-    }
+        .for_each(|(y, (row_out, row_z))| {
+            let yc = (y as f32 - k.cy) * ify;
+            for (x, (o, &z)) in row_out.iter_mut().zip(row_z).enumerate() {
+                *o = if z.is_finite() && z > 0.0 {
+                    [(x as f32 - k.cx) * ifx * z, yc * z, z]
+                } else {
+                    [0.0; 3]
+                };
+            }
+        });
 }
 
 /// The smoothed points of every row as three planes (x, y, z), each `pad` zero pixels
@@ -477,8 +476,8 @@ pub(super) fn creases(inp: &CreaseInput<'_>, params: &SegmenterParams, out: &mut
             CREASE_SOFT
         }
     };
-    for y in 0..h {
-        for x in 0..w {
+    out.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+        for (x, out) in out.iter_mut().enumerate() {
             let i = y * w + x;
             if !object[i] {
                 continue;
@@ -492,7 +491,7 @@ pub(super) fn creases(inp: &CreaseInput<'_>, params: &SegmenterParams, out: &mut
             if y >= reach && y + reach < h && object[up] && object[down] {
                 f |= judge(c, i - r * w, i + r * w);
             }
-            out[i] = f;
+            *out = f;
         }
-    }
+    });
 }

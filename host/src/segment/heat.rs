@@ -55,6 +55,7 @@ use super::{
     geometry::{CREASE_SOFT, P3},
     grow::HOLE,
 };
+use crate::par::*;
 
 const SOURCE: u8 = 1;
 const GAP: u8 = 2;
@@ -251,28 +252,33 @@ pub(super) fn heatmap(
     // 3. Heat.
     let mark = &s.mark;
     squared_distance(w, inner, |i| mark[i] != 0, &mut s.edt, &mut s.d_source);
-    for (i, (&label, heat)) in labels.iter().zip(heat.iter_mut()).enumerate() {
-        if label == 0 {
-            if s.mark[i] & GAP != 0 {
-                *heat = HEAT_UNCERTAIN;
+    let (d_source, d_background) = (&s.d_source, &s.d_background);
+    heat.par_chunks_mut(w).enumerate().for_each(|(y, heat)| {
+        for (x, heat) in heat.iter_mut().enumerate() {
+            let i = y * w + x;
+            let label = labels[i];
+            if label == 0 {
+                if mark[i] & GAP != 0 {
+                    *heat = HEAT_UNCERTAIN;
+                }
+                continue;
             }
-            continue;
+            let m_per_px = depth(i) * inp.inv_focal;
+            let d_s = d_source[i].sqrt() * m_per_px;
+            let d_b = d_background[i].sqrt() * m_per_px;
+            *heat = if d_s < params.band_m {
+                let band = f32::from(HEAT_CERTAIN - HEAT_UNCERTAIN);
+                HEAT_UNCERTAIN
+                    + ((band * d_s / params.band_m) as u8).min(HEAT_CERTAIN - HEAT_UNCERTAIN - 1)
+            } else if d_b < params.rim_m {
+                params.rim_heat
+            } else {
+                let t = ((d_s - params.band_m).min(d_b - params.rim_m) / params.certain_ramp_m)
+                    .clamp(0.0, 1.0);
+                HEAT_CERTAIN + (f32::from(u8::MAX - HEAT_CERTAIN) * t) as u8
+            };
         }
-        let m_per_px = depth(i) * inp.inv_focal;
-        let d_s = s.d_source[i].sqrt() * m_per_px;
-        let d_b = s.d_background[i].sqrt() * m_per_px;
-        *heat = if d_s < params.band_m {
-            let band = f32::from(HEAT_CERTAIN - HEAT_UNCERTAIN);
-            HEAT_UNCERTAIN
-                + ((band * d_s / params.band_m) as u8).min(HEAT_CERTAIN - HEAT_UNCERTAIN - 1)
-        } else if d_b < params.rim_m {
-            params.rim_heat
-        } else {
-            let t = ((d_s - params.band_m).min(d_b - params.rim_m) / params.certain_ramp_m)
-                .clamp(0.0, 1.0);
-            HEAT_CERTAIN + (f32::from(u8::MAX - HEAT_CERTAIN) * t) as u8
-        };
-    }
+    });
 }
 
 /// The smallest window holding every labelled pixel; `None` if there is none.

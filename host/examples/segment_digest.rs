@@ -7,7 +7,8 @@
 //!   folder when present) and one over all of them. One segmenter serves every frame in
 //!   turn (so scratch reuse across sizes is covered) and a fresh one checks each.
 //! - `... --example segment_digest -- time N` segments the first real frame (or the
-//!   synthetic tabletop without the shared data) `N` times and prints the mean wall time:
+//!   synthetic tabletop without the shared data) `N` times and prints the least and the
+//!   median wall time:
 //!   run it under `valgrind --tool=callgrind` for an instruction count.
 
 use std::{path::PathBuf, time::Instant};
@@ -158,12 +159,17 @@ fn main() {
         .unwrap_or_else(|| synthetic(640, 480, 1));
         let mut seg = ClassicalSegmenter::new(params).expect("params");
         let frame = RgbdFrame::new(f.width, f.height, &f.rgb, &f.depth_m).expect("frame");
-        let start = Instant::now();
-        for _ in 0..n {
-            core::hint::black_box(seg.segment_detailed(&frame, &f.k).expect("segments"));
+        let mut ms: Vec<f64> = (0..n)
+            .map(|_| {
+                let start = Instant::now();
+                core::hint::black_box(seg.segment_detailed(&frame, &f.k).expect("segments"));
+                start.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        ms.sort_by(f64::total_cmp);
+        if let (Some(min), Some(median)) = (ms.first(), ms.get(n / 2)) {
+            println!("{}: {n} runs, min {min:.2} ms, median {median:.2} ms", f.name);
         }
-        let ms = start.elapsed().as_secs_f64() * 1e3 / n as f64;
-        println!("{}: {n} runs, {ms:.2} ms each", f.name);
         return;
     }
     let mut inputs = vec![

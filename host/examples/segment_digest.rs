@@ -168,7 +168,10 @@ fn main() {
             .collect();
         ms.sort_by(f64::total_cmp);
         if let (Some(min), Some(median)) = (ms.first(), ms.get(n / 2)) {
-            println!("{}: {n} runs, min {min:.2} ms, median {median:.2} ms", f.name);
+            println!(
+                "{}: {n} runs, min {min:.2} ms, median {median:.2} ms",
+                f.name
+            );
         }
         return;
     }

@@ -144,15 +144,18 @@ pub(super) fn heatmap(
         }
     };
 
-    // 1a. Contacts and their gaps.
+    // 1a. Contacts and their gaps (and 1b. creases, steps and holes).
     s.mark.clear();
     s.mark.resize(n, 0);
-    for i in 0..n {
+    for (i, (x, y)) in (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).enumerate() {
         let a = labels[i];
         if a == 0 {
             continue;
         }
-        let (x, y) = (i % w, i / w);
+        // 1b. Creases, steps and holes.
+        if inp.crease[i] & CREASE_SOFT != 0 || inp.step[i] != 0 || inp.hole[i] == HOLE {
+            s.mark[i] |= SOURCE;
+        }
         // Every scan stops at once where each 4-neighbour is off the image or in `a`.
         let same = |j: usize| labels[j] == a;
         if (x == 0 || same(i - 1))
@@ -200,15 +203,6 @@ pub(super) fn heatmap(
                 }
                 break;
             }
-        }
-    }
-
-    // 1b. Creases, steps and holes.
-    for (i, mark) in s.mark.iter_mut().enumerate() {
-        if labels[i] != 0
-            && (inp.crease[i] & CREASE_SOFT != 0 || inp.step[i] != 0 || inp.hole[i] == HOLE)
-        {
-            *mark |= SOURCE;
         }
     }
 
@@ -477,12 +471,11 @@ fn necks(inp: &HeatInput<'_>, params: &SegmenterParams, notch: &mut Vec<u32>, ma
     notch.clear();
     // The last disc's radius and half-widths.
     let mut disc: (isize, Vec<isize>) = (0, Vec::new());
-    for i in 0..w * h {
+    for (i, (x, y)) in (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).enumerate() {
         let (a, z) = (labels[i], inp.pts[i][2]);
         if a == 0 || z <= 0.0 {
             continue;
         }
-        let (x, y) = (i % w, i / w);
         let outline = [
             (x > 0).then(|| i - 1),
             (x + 1 < w).then(|| i + 1),

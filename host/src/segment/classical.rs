@@ -17,8 +17,11 @@
 //! height pushed flush together are one segment); the heatmap marks the creases and
 //! contacts it does see as uncertain.
 //!
-//! All buffers live in the segmenter and are reused, so segmenting a stream of frames of
-//! one size allocates only the output.
+//! All frame-sized buffers live in the segmenter and are reused, so segmenting a stream of
+//! frames of one size allocates only the output and line buffers (a few kilobytes per
+//! parallel task). With the `threads` feature the per-pixel stages run rows in parallel;
+//! every pixel's arithmetic is the same whatever the thread count, so the output is
+//! bit-identical on 1 or more threads and without the feature.
 
 use riseg_core::Intrinsics;
 

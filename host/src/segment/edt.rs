@@ -1,7 +1,9 @@
 //! Exact Euclidean distance transform (Felzenszwalb & Huttenlocher 2012): for every pixel,
 //! the squared distance in pixels to the nearest pixel of a set, in `O(width·height)`.
 //!
-//! Contract: [`squared_distance`] writes `f32::INFINITY` everywhere when the set is empty.
+//! Contract: [`squared_distance`] works in a window of the image and writes
+//! `f32::INFINITY` everywhere in it when the set has no pixel there. The distances are
+//! exact (integers in `f32`), so the result does not depend on the order of the work.
 //! Down the columns the distance to the nearest set pixel is found by two scans (down and
 //! up); along the rows, the 1-D transform is the lower envelope of the parabolas
 //! `(q − p)² + f(p)` over the squared column distances `f(p)` (samples at infinity are
@@ -9,7 +11,8 @@
 
 use crate::par::*;
 
-/// Line scratch for [`squared_distance`], reused across calls.
+/// Column scratch for [`squared_distance`], reused across calls (the row pass allocates
+/// its line buffers once per parallel task).
 #[derive(Debug, Default)]
 pub(super) struct EdtScratch {
     run: Vec<f32>,

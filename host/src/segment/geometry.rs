@@ -146,21 +146,44 @@ impl WindowSums {
         }
     }
 
-    /// Adds the points `(qx, qy, qz)` whose depth is within the tolerance of the centre
-    /// depth `cz` to the sums. A skipped point adds `+0.0`, which leaves a sum's bits as
-    /// they are (a sum that starts at `+0.0` is never `-0.0`), so this branch-free form
-    /// (which the compiler vectorises) sums exactly what a test per point would.
-    fn add(&mut self, qx: &[f32], qy: &[f32], qz: &[f32], cz: &[f32]) {
+    /// Adds the points of the taps `0..count` (`tap(t)`: the x, y and z planes of tap
+    /// `t`, aligned with the centres) whose depth is within the tolerance of the centre
+    /// depth `cz` to the sums, in tap order, four taps a pass over the row.
+    fn add_taps<'a>(&mut self, count: usize, tap: impl Fn(usize) -> [&'a [f32]; 3], cz: &[f32]) {
+        let mut t = 0;
+        while t + 4 <= count {
+            self.add([tap(t), tap(t + 1), tap(t + 2), tap(t + 3)], cz);
+            t += 4;
+        }
+        match count - t {
+            3 => self.add([tap(t), tap(t + 1), tap(t + 2)], cz),
+            2 => self.add([tap(t), tap(t + 1)], cz),
+            1 => self.add([tap(t)], cz),
+            _ => {}
+        }
+    }
+
+    /// Adds the points of the `N` taps (x, y and z planes aligned with the centres) whose
+    /// depth is within the tolerance of the centre depth `cz` to the sums, in tap order. A
+    /// skipped point adds `+0.0`, which leaves a sum's bits as they are (a sum that starts
+    /// at `+0.0` is never `-0.0`), so this branch-free form (which the compiler vectorises,
+    /// with the sums in registers across the taps) sums exactly what a test per point would.
+    fn add<const N: usize>(&mut self, taps: [[&[f32]; 3]; N], cz: &[f32]) {
         let w = self.jump.len();
         let [sx, sy, sz, sn] = &mut self.acc;
         let (sx, sy, sz, sn) = (&mut sx[..w], &mut sy[..w], &mut sz[..w], &mut sn[..w]);
-        let (qx, qy, qz, cz, jump) = (&qx[..w], &qy[..w], &qz[..w], &cz[..w], &self.jump[..w]);
+        let taps = taps.map(|t| t.map(|plane| &plane[..w]));
+        let (cz, jump) = (&cz[..w], &self.jump[..w]);
         for x in 0..w {
-            let m = mask((qz[x] > 0.0) & ((qz[x] - cz[x]).abs() <= jump[x]));
-            sx[x] += keep(qx[x], m);
-            sy[x] += keep(qy[x], m);
-            sz[x] += keep(qz[x], m);
-            sn[x] += keep(1.0, m);
+            let (mut ax, mut ay, mut az, mut an) = (sx[x], sy[x], sz[x], sn[x]);
+            for [qx, qy, qz] in &taps {
+                let m = mask((qz[x] > 0.0) & ((qz[x] - cz[x]).abs() <= jump[x]));
+                ax += keep(qx[x], m);
+                ay += keep(qy[x], m);
+                az += keep(qz[x], m);
+                an += keep(1.0, m);
+            }
+            (sx[x], sy[x], sz[x], sn[x]) = (ax, ay, az, an);
         }
     }
 
@@ -212,9 +235,7 @@ pub(super) fn smooth_points(
             let [rx, ry, rz] = &*row;
             let cz = &rz[r..];
             sums.start(cz, params);
-            for d in 0..=2 * r {
-                sums.add(&rx[d..], &ry[d..], &rz[d..], cz);
-            }
+            sums.add_taps(2 * r + 1, |d| [&rx[d..], &ry[d..], &rz[d..]], cz);
             let (tx, t) = t.split_at_mut(w);
             let (ty, tz) = t.split_at_mut(w);
             sums.means(cz, tx, ty, tz);
@@ -236,10 +257,16 @@ pub(super) fn smooth_points(
                 let centre = &tmp[3 * w * y..3 * w * (y + 1)];
                 let cz = &centre[2 * w..];
                 sums.start(cz, params);
-                for yy in y.saturating_sub(r)..=(y + r).min(h - 1) {
-                    let q = &tmp[3 * w * yy..3 * w * (yy + 1)];
-                    sums.add(&q[..w], &q[w..2 * w], &q[2 * w..], cz);
-                }
+                let first = y.saturating_sub(r);
+                let count = (y + r).min(h - 1) + 1 - first;
+                sums.add_taps(
+                    count,
+                    |t| {
+                        let q = &tmp[3 * w * (first + t)..3 * w * (first + t + 1)];
+                        [&q[..w], &q[w..2 * w], &q[2 * w..]]
+                    },
+                    cz,
+                );
                 let (px, pl) = pl.split_at_mut(wp);
                 let (py, pz) = pl.split_at_mut(wp);
                 let (px, py, pz) = (

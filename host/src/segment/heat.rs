@@ -422,22 +422,22 @@ fn pack_cuts(
         return;
     }
     for (i, (&l, &p)) in inp.labels.iter().zip(inp.pts).enumerate() {
+        if l == 0 || p[2] <= 0.0 {
+            continue;
+        }
         let Some(Cut {
             centre,
             axes,
             cells,
-        }) = cuts.get(usize::from(l)).copied().flatten()
+        }) = cuts.get(usize::from(l)).and_then(Option::as_ref)
         else {
             continue;
         };
-        if p[2] <= 0.0 {
-            continue;
-        }
         // A cut is one pixel wide: within half a pixel of a cut position.
         let half_px_m = 0.5 * f64::from(p[2] * inp.inv_focal);
         let q = flatten(p);
         let d = [0, 1, 2].map(|a| q[a] - centre[a]);
-        let on_cut = axes.iter().zip(cells).any(|((axis, len_m), n)| {
+        let on_cut = axes.iter().zip(*cells).any(|((axis, len_m), n)| {
             let along = d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2];
             // Position in cells from the start of the axis.
             let pos = (along / len_m + 0.5) * n as f64;

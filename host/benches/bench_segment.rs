@@ -1,5 +1,7 @@
-//! The classical static segmenter at 640×480, one thread: a synthetic tabletop (boxes,
-//! exact geometry) and, when the shared data folder is present, a real RealSense frame.
+//! The classical static segmenter at 640×480: a synthetic tabletop (boxes, exact
+//! geometry) and, when the shared data folder is present, a real RealSense frame, each on
+//! a pool of one thread and of two (the segmenter's rows run in parallel with the
+//! `threads` feature; without it both pools measure one thread).
 //!
 //! `cargo bench -p riseg --bench bench_segment`
 
@@ -16,12 +18,21 @@ use riseg_core::Intrinsics;
 fn segment(c: &mut Criterion) {
     let mut g = c.benchmark_group("segment_640x480");
     let mut seg = ClassicalSegmenter::new(SegmenterParams::default()).expect("params");
+    let pools = [1, 2].map(|threads| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool");
+        (if threads == 1 { "" } else { "_2_threads" }, pool)
+    });
 
     let t = SyntheticTabletop::boxes(640, 480, 1).expect("scene");
     let frame = RgbdFrame::new(t.width, t.height, &t.rgb, &t.depth_m).expect("frame");
-    g.bench_function("synthetic_boxes", |b| {
-        b.iter(|| seg.segment(black_box(&frame), &t.intrinsics))
-    });
+    for (suffix, pool) in &pools {
+        g.bench_function(format!("synthetic_boxes{suffix}"), |b| {
+            pool.install(|| b.iter(|| seg.segment(black_box(&frame), &t.intrinsics)));
+        });
+    }
 
     let root = std::env::var_os("RISEG_SHARED_DATA").map_or_else(
         || PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data")),
@@ -40,9 +51,11 @@ fn segment(c: &mut Criterion) {
                 .collect();
             let frame = RgbdFrame::new(640, 480, rgb.as_slice(), &depth_m).expect("frame");
             let k = Intrinsics::new(612.937, 613.173, 322.549, 248.158).expect("intrinsics");
-            g.bench_function("realsense_ucn_000000", |b| {
-                b.iter(|| seg.segment(black_box(&frame), &k))
-            });
+            for (suffix, pool) in &pools {
+                g.bench_function(format!("realsense_ucn_000000{suffix}"), |b| {
+                    pool.install(|| b.iter(|| seg.segment(black_box(&frame), &k)));
+                });
+            }
         }
         _ => println!("skipping the real frame: {} not found", demo.display()),
     }

@@ -17,8 +17,11 @@
 //! height pushed flush together are one segment); the heatmap marks the creases and
 //! contacts it does see as uncertain.
 //!
-//! All buffers live in the segmenter and are reused, so segmenting a stream of frames of
-//! one size allocates only the output.
+//! All frame-sized buffers live in the segmenter and are reused, so segmenting a stream of
+//! frames of one size allocates only the output and line buffers (a few kilobytes per
+//! parallel task). With the `threads` feature the per-pixel stages run rows in parallel;
+//! every pixel's arithmetic is the same whatever the thread count, so the output is
+//! bit-identical on 1 or more threads and without the feature.
 
 use riseg_core::Intrinsics;
 
@@ -27,9 +30,9 @@ use super::{
     geometry::{self, P3},
     grow::{GrowInput, GrowScratch, grow_segments},
     heat::{HeatInput, HeatScratch, heatmap},
-    plane::{PlaneScratch, TablePlane, fit_table},
+    plane::{PlaneScratch, TableFit, TablePlane, fit_table},
 };
-use crate::io::image::Image;
+use crate::{io::image::Image, par::*};
 
 /// Heat of background points just under the object threshold (see [`heat`](super::heat)).
 const TABLE_HEAT_MAX: f32 = 100.0;
@@ -67,6 +70,30 @@ struct Scratch {
 pub struct ClassicalSegmenter {
     params: SegmenterParams,
     scratch: Scratch,
+}
+
+/// One row of the height test, branch-free so that the compiler vectorises it: `heat` is
+/// `⌊100 · max(0, h / h_min)⌋` for points below the object threshold, 0 elsewhere, and
+/// `object` marks points from the threshold up to `max_height_m` (the candidates of the
+/// hull test).
+fn classify_row(
+    [px, py, pz]: [&[f32]; 3],
+    table: &TableFit,
+    p: &SegmenterParams,
+    object: &mut [bool],
+    heat: &mut [u8],
+) {
+    let w = object.len();
+    let (px, py, pz, heat) = (&px[..w], &py[..w], &pz[..w], &mut heat[..w]);
+    for x in 0..w {
+        let q = [px[x], py[x], pz[x]];
+        let height = table.height_of(q);
+        let h_min = p.min_height_at_m(q[2]);
+        let below = height < h_min;
+        let value = (TABLE_HEAT_MAX * (height / h_min).max(0.0)) as u8;
+        heat[x] = if (q[2] > 0.0) & below { value } else { 0 };
+        object[x] = (q[2] > 0.0) & !below & (height <= p.max_height_m);
+    }
 }
 
 impl ClassicalSegmenter {
@@ -115,26 +142,27 @@ impl ClassicalSegmenter {
 
         geometry::back_project(frame, intrinsics, &mut s.raw);
         geometry::smooth_points(w, h, &s.raw, p, &mut s.smooth, &mut s.pts);
-        geometry::normals(w, h, &s.pts, p, &mut s.nrm);
+        geometry::normals(w, h, &s.smooth.planes, p, &mut s.nrm);
         let table = fit_table(w, h, &s.pts, &s.nrm, p, &mut s.plane)?;
         let px_per_m2 = 1.0 / (intrinsics.fx * intrinsics.fy);
         for (a, q) in s.px_area_m2.iter_mut().zip(&s.pts) {
             *a = q[2] * q[2] * px_per_m2;
         }
         let mut heat = vec![0u8; n];
-        for ((&q, object), heat) in s.pts.iter().zip(&mut s.object).zip(&mut heat) {
-            *object = false;
-            if q[2] <= 0.0 {
-                continue;
-            }
-            let height = table.height_of(q);
-            let h_min = p.min_height_at_m(q[2]);
-            if height < h_min {
-                *heat = (TABLE_HEAT_MAX * (height / h_min).max(0.0)) as u8;
-            } else if height <= p.max_height_m {
-                *object = table.hull.contains(q, p.hull_margin_m);
-            }
-        }
+        let planes = &s.smooth.planes;
+        s.object
+            .par_chunks_mut(w)
+            .zip(heat.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, (object, heat))| {
+                let [px, py, pz] = planes.row_xyz(y);
+                classify_row([px, py, pz], &table, p, object, heat);
+                for (x, object) in object.iter_mut().enumerate() {
+                    if *object {
+                        *object = table.hull.contains([px[x], py[x], pz[x]], p.hull_margin_m);
+                    }
+                }
+            });
 
         let crease_input = geometry::CreaseInput {
             w,

@@ -11,6 +11,7 @@
 //! centre's; for the normals and creases (`r` pixels apart), within `r` times that.
 
 use super::{RgbdFrame, SegmenterParams};
+use crate::par::*;
 use riseg_core::Intrinsics;
 
 /// Crease flag: a concave bend sharper than `crease_soft_deg` (heatmap source).
@@ -40,38 +41,174 @@ pub(super) fn cross(a: P3, b: P3) -> P3 {
 pub(super) fn back_project(frame: &RgbdFrame<'_>, k: &Intrinsics, out: &mut [P3]) {
     let w = frame.width();
     let (ifx, ify) = (1.0 / k.fx, 1.0 / k.fy);
-    for (y, (row_out, row_z)) in out
-        .chunks_exact_mut(w)
-        .zip(frame.depth_m().chunks_exact(w))
+    out.par_chunks_mut(w)
+        .zip(frame.depth_m().par_chunks(w))
         .enumerate()
-    {
-        let yc = (y as f32 - k.cy) * ify;
-        for (x, (o, &z)) in row_out.iter_mut().zip(row_z).enumerate() {
-            *o = if z.is_finite() && z > 0.0 {
-                [(x as f32 - k.cx) * ifx * z, yc * z, z]
-            } else {
-                [0.0; 3]
-            };
+        .for_each(|(y, (row_out, row_z))| {
+            let yc = (y as f32 - k.cy) * ify;
+            for (x, (o, &z)) in row_out.iter_mut().zip(row_z).enumerate() {
+                *o = if z.is_finite() && z > 0.0 {
+                    [(x as f32 - k.cx) * ifx * z, yc * z, z]
+                } else {
+                    [0.0; 3]
+                };
+            }
+        });
+}
+
+/// The smoothed points of every row as three planes (x, y, z), each `pad` zero pixels
+/// wider on both sides than the image: what [`normals`] reads, with no bounds tests at the
+/// image's left and right edges (a padding pixel has no reading).
+#[derive(Debug, Default)]
+pub(super) struct RowPlanes {
+    pad: usize,
+    /// Padded row width, `w + 2·pad`.
+    wp: usize,
+    /// Row `y` at `3·wp·y`: x plane, y plane, z plane.
+    data: Vec<f32>,
+}
+
+impl RowPlanes {
+    /// Sizes the planes for `h` rows of `w` pixels padded by `pad`, zeroing them only
+    /// when the size changes: the padding is never written, the rest always.
+    fn resize(&mut self, w: usize, h: usize, pad: usize) {
+        if (self.pad, self.wp, self.data.len()) != (pad, w + 2 * pad, 3 * (w + 2 * pad) * h) {
+            self.pad = pad;
+            self.wp = w + 2 * pad;
+            self.data.clear();
+            self.data.resize(3 * self.wp * h, 0.0);
         }
+    }
+
+    /// The x, y and z planes of row `y`, without the padding.
+    pub(super) fn row_xyz(&self, y: usize) -> [&[f32]; 3] {
+        let (row, w) = (self.row(y), self.wp - 2 * self.pad);
+        core::array::from_fn(|k| &row[k * self.wp + self.pad..k * self.wp + self.pad + w])
+    }
+
+    /// Planes of row `y`, padded.
+    fn row(&self, y: usize) -> &[f32] {
+        &self.data[3 * self.wp * y..3 * self.wp * (y + 1)]
     }
 }
 
 /// Scratch of [`smooth_points`], reused across frames.
 #[derive(Debug, Default)]
 pub(super) struct SmoothScratch {
-    /// The row pass's result.
-    tmp: Vec<P3>,
-    /// Column sums of one output row (x, y, z, count).
-    acc: Vec<[f32; 4]>,
-    /// Depth tolerance of each centre pixel of one row.
+    /// The row pass's result: per row, the x, y and z planes (`3·w` values).
+    tmp: Vec<f32>,
+    /// The smoothed points as padded row planes, for [`normals`].
+    pub(super) planes: RowPlanes,
+}
+
+/// Per-row scratch of the smoothing: a padded input row, window sums and tolerances.
+#[derive(Debug, Default)]
+struct RowScratch {
+    /// Padded row planes x, y, z of the row pass's input (`w + 2r` each).
+    row: [Vec<f32>; 3],
+    /// Window sums x, y, z and count, and each centre's depth tolerance.
+    sums: WindowSums,
+}
+
+impl RowScratch {
+    fn with_width(w: usize, r: usize) -> Self {
+        Self {
+            row: core::array::from_fn(|_| vec![0.0; w + 2 * r]),
+            sums: WindowSums {
+                acc: core::array::from_fn(|_| vec![0.0; w]),
+                jump: vec![0.0; w],
+            },
+        }
+    }
+}
+
+/// Sums of the points of a window on the centre's surface, for one row of centres.
+#[derive(Debug, Default)]
+struct WindowSums {
+    /// Sums x, y, z and count.
+    acc: [Vec<f32>; 4],
+    /// Depth tolerance of each centre pixel, infinitely negative where it has no reading.
     jump: Vec<f32>,
+}
+
+impl WindowSums {
+    /// Clears the sums and sets the tolerances from the centre depths `cz`.
+    fn start(&mut self, cz: &[f32], params: &SegmenterParams) {
+        for (j, &z) in self.jump.iter_mut().zip(cz) {
+            *j = if z > 0.0 {
+                params.depth_jump_at_m(z)
+            } else {
+                f32::NEG_INFINITY
+            };
+        }
+        for a in &mut self.acc {
+            a.fill(0.0);
+        }
+    }
+
+    /// Adds the points of the taps `0..count` (`tap(t)`: the x, y and z planes of tap
+    /// `t`, aligned with the centres) whose depth is within the tolerance of the centre
+    /// depth `cz` to the sums, in tap order, four taps a pass over the row.
+    fn add_taps<'a>(&mut self, count: usize, tap: impl Fn(usize) -> [&'a [f32]; 3], cz: &[f32]) {
+        let mut t = 0;
+        while t + 4 <= count {
+            self.add([tap(t), tap(t + 1), tap(t + 2), tap(t + 3)], cz);
+            t += 4;
+        }
+        match count - t {
+            3 => self.add([tap(t), tap(t + 1), tap(t + 2)], cz),
+            2 => self.add([tap(t), tap(t + 1)], cz),
+            1 => self.add([tap(t)], cz),
+            _ => {}
+        }
+    }
+
+    /// Adds the points of the `N` taps (x, y and z planes aligned with the centres) whose
+    /// depth is within the tolerance of the centre depth `cz` to the sums, in tap order. A
+    /// skipped point adds `+0.0`, which leaves a sum's bits as they are (a sum that starts
+    /// at `+0.0` is never `-0.0`), so this branch-free form (which the compiler vectorises,
+    /// with the sums in registers across the taps) sums exactly what a test per point would.
+    fn add<const N: usize>(&mut self, taps: [[&[f32]; 3]; N], cz: &[f32]) {
+        let w = self.jump.len();
+        let [sx, sy, sz, sn] = &mut self.acc;
+        let (sx, sy, sz, sn) = (&mut sx[..w], &mut sy[..w], &mut sz[..w], &mut sn[..w]);
+        let taps = taps.map(|t| t.map(|plane| &plane[..w]));
+        let (cz, jump) = (&cz[..w], &self.jump[..w]);
+        for x in 0..w {
+            let (mut ax, mut ay, mut az, mut an) = (sx[x], sy[x], sz[x], sn[x]);
+            for [qx, qy, qz] in &taps {
+                let m = mask((qz[x] > 0.0) & ((qz[x] - cz[x]).abs() <= jump[x]));
+                ax += keep(qx[x], m);
+                ay += keep(qy[x], m);
+                az += keep(qz[x], m);
+                an += keep(1.0, m);
+            }
+            (sx[x], sy[x], sz[x], sn[x]) = (ax, ay, az, an);
+        }
+    }
+
+    /// The means where the centre has a reading, zero elsewhere, into `(ox, oy, oz)`.
+    fn means(&self, cz: &[f32], ox: &mut [f32], oy: &mut [f32], oz: &mut [f32]) {
+        let w = self.jump.len();
+        let [sx, sy, sz, sn] = &self.acc;
+        let (sx, sy, sz, sn, cz) = (&sx[..w], &sy[..w], &sz[..w], &sn[..w], &cz[..w]);
+        let (ox, oy, oz) = (&mut ox[..w], &mut oy[..w], &mut oz[..w]);
+        for x in 0..w {
+            let m = mask(cz[x] > 0.0);
+            ox[x] = keep(sx[x] / sn[x], m);
+            oy[x] = keep(sy[x] / sn[x], m);
+            oz[x] = keep(sz[x] / sn[x], m);
+        }
+    }
 }
 
 /// Edge-aware smoothing of the points: the mean of the points within
 /// `smooth_radius_px` along the row whose depth is within
 /// [`SegmenterParams::depth_jump_at_m`] of the centre's, then the same along the column of
 /// that result (a separable bilateral filter with a box kernel: steps larger than the
-/// tolerance stay sharp).
+/// tolerance stay sharp). Sums run in increasing x, then y. Writes `out` and
+/// `scratch.planes` (padded by `normal_radius_px`). Rows run in parallel with the
+/// `threads` feature, with the same result.
 pub(super) fn smooth_points(
     w: usize,
     h: usize,
@@ -80,63 +217,69 @@ pub(super) fn smooth_points(
     scratch: &mut SmoothScratch,
     out: &mut [P3],
 ) {
-    let SmoothScratch { tmp, acc, jump } = scratch;
-    tmp.clear();
-    tmp.resize(w * h, [0.0; 3]);
+    let SmoothScratch { tmp, planes } = scratch;
+    // Every value is written below.
+    tmp.resize(3 * w * h, 0.0);
     let r = params.smooth_radius_px;
-    let add = |s: &mut [f32; 4], q: P3| *s = [s[0] + q[0], s[1] + q[1], s[2] + q[2], s[3] + 1.0];
-    let mean = |s: [f32; 4]| [s[0] / s[3], s[1] / s[3], s[2] / s[3]];
     // Along rows.
-    for (row_in, row_out) in raw.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
-        for (x, o) in row_out.iter_mut().enumerate() {
-            let c = row_in[x];
-            if c[2] <= 0.0 {
-                *o = [0.0; 3];
-                continue;
-            }
-            let jump = params.depth_jump_at_m(c[2]);
-            let mut sum = [0.0f32; 4];
-            for &q in &row_in[x.saturating_sub(r)..=(x + r).min(w - 1)] {
-                if q[2] > 0.0 && (q[2] - c[2]).abs() <= jump {
-                    add(&mut sum, q);
+    tmp.par_chunks_mut(3 * w).enumerate().for_each_init(
+        || RowScratch::with_width(w, r),
+        |rs, (y, t)| {
+            let RowScratch { row, sums } = rs;
+            let row_in = &raw[y * w..(y + 1) * w];
+            for (k, plane) in row.iter_mut().enumerate() {
+                for (v, q) in plane[r..r + w].iter_mut().zip(row_in) {
+                    *v = q[k];
                 }
             }
-            // sum[3] >= 1: the centre itself always qualifies.
-            *o = mean(sum);
-        }
-    }
-    // Along columns, a row at a time (contiguous memory): `acc[x]` sums column x, and
-    // `jump[x]` is the tolerance of the centre (infinitely negative where it has no reading).
-    acc.clear();
-    acc.resize(w, [0.0; 4]);
-    jump.clear();
-    jump.resize(w, 0.0);
-    for y in 0..h {
-        acc.fill([0.0; 4]);
-        let centre = &tmp[y * w..(y + 1) * w];
-        for (j, c) in jump.iter_mut().zip(centre) {
-            *j = if c[2] > 0.0 {
-                params.depth_jump_at_m(c[2])
-            } else {
-                f32::NEG_INFINITY
-            };
-        }
-        for yy in y.saturating_sub(r)..=(y + r).min(h - 1) {
-            let row = &tmp[yy * w..(yy + 1) * w];
-            for (((s, &c), &q), &j) in acc.iter_mut().zip(centre).zip(row).zip(jump.iter()) {
-                if q[2] > 0.0 && (q[2] - c[2]).abs() <= j {
-                    add(s, q);
+            let [rx, ry, rz] = &*row;
+            let cz = &rz[r..];
+            sums.start(cz, params);
+            sums.add_taps(2 * r + 1, |d| [&rx[d..], &ry[d..], &rz[d..]], cz);
+            let (tx, t) = t.split_at_mut(w);
+            let (ty, tz) = t.split_at_mut(w);
+            sums.means(cz, tx, ty, tz);
+        },
+    );
+    // Along columns.
+    let pad = params.normal_radius_px;
+    planes.resize(w, h, pad);
+    let tmp: &[f32] = tmp;
+    let wp = planes.wp;
+    planes
+        .data
+        .par_chunks_mut(3 * wp)
+        .zip(out.par_chunks_mut(w))
+        .enumerate()
+        .for_each_init(
+            || RowScratch::with_width(w, 0),
+            |RowScratch { sums, .. }, (y, (pl, o))| {
+                let centre = &tmp[3 * w * y..3 * w * (y + 1)];
+                let cz = &centre[2 * w..];
+                sums.start(cz, params);
+                let first = y.saturating_sub(r);
+                let count = (y + r).min(h - 1) + 1 - first;
+                sums.add_taps(
+                    count,
+                    |t| {
+                        let q = &tmp[3 * w * (first + t)..3 * w * (first + t + 1)];
+                        [&q[..w], &q[w..2 * w], &q[2 * w..]]
+                    },
+                    cz,
+                );
+                let (px, pl) = pl.split_at_mut(wp);
+                let (py, pz) = pl.split_at_mut(wp);
+                let (px, py, pz) = (
+                    &mut px[pad..pad + w],
+                    &mut py[pad..pad + w],
+                    &mut pz[pad..pad + w],
+                );
+                sums.means(cz, px, py, pz);
+                for (x, o) in o.iter_mut().enumerate() {
+                    *o = [px[x], py[x], pz[x]];
                 }
-            }
-        }
-        for ((o, &s), &c) in out[y * w..(y + 1) * w]
-            .iter_mut()
-            .zip(acc.iter())
-            .zip(centre)
-        {
-            *o = if c[2] > 0.0 { mean(s) } else { [0.0; 3] };
-        }
-    }
+            },
+        );
 }
 
 /// Clears the flags of 8-connected flagged regions (creases, steps) whose area (sum of
@@ -190,52 +333,110 @@ fn same_surface(c: P3, q: P3, sep: usize, params: &SegmenterParams) -> bool {
     q[2] > 0.0 && (q[2] - c[2]).abs() <= params.depth_jump_at_m(c[2]) * sep as f32
 }
 
-/// The difference across pixel `i` along a line with neighbours `lo` and `hi` (if they are
-/// in the image): central where both are on the surface, one-sided where one is.
-fn difference(pts: &[P3], i: usize, lo: Option<usize>, hi: Option<usize>) -> P3 {
-    let c = pts[i];
-    let on = |j: Option<usize>| j.map(|j| pts[j]).filter(|&q| q[2] > 0.0);
-    match (on(lo), on(hi)) {
-        (Some(a), Some(b)) => sub(b, a),
-        (None, Some(b)) => sub(b, c),
-        (Some(a), None) => sub(c, a),
-        (None, None) => [0.0; 3],
-    }
-}
-
 /// Unit normals facing the camera from cross products of point differences
 /// `±normal_radius_px` apart; `[0, 0, 0]` where either direction has no surface neighbour.
-pub(super) fn normals(w: usize, h: usize, pts: &[P3], params: &SegmenterParams, out: &mut [P3]) {
+///
+/// Along each direction the difference across a pixel is central where both neighbours
+/// `r` pixels away are on its surface (a reading within `r` times
+/// [`SegmenterParams::depth_jump_at_m`] of its depth), one-sided where one is. Reads the
+/// points from `planes` ([`smooth_points`]); rows run in parallel with the `threads`
+/// feature, with the same result.
+pub(super) fn normals(
+    w: usize,
+    h: usize,
+    planes: &RowPlanes,
+    params: &SegmenterParams,
+    out: &mut [P3],
+) {
     let r = params.normal_radius_px;
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            let c = pts[i];
-            out[i] = [0.0; 3];
-            if c[2] <= 0.0 {
-                continue;
+    let (pad, wp) = (planes.pad, planes.wp);
+    debug_assert!(pad >= r && planes.data.len() == 3 * wp * h);
+    let none = vec![0.0f32; 3 * wp];
+    out.par_chunks_mut(w).enumerate().for_each_init(
+        || vec![0.0f32; 3 * w],
+        |soa, (y, o)| {
+            let row = planes.row(y);
+            let up = if y >= r { planes.row(y - r) } else { &none };
+            let down = if y + r < h { planes.row(y + r) } else { &none };
+            // The x, y, z planes of a padded row, shifted by `dx` pixels.
+            fn planes_at(
+                row: &[f32],
+                (w, wp, pad): (usize, usize, usize),
+                dx: isize,
+            ) -> [&[f32]; 3] {
+                core::array::from_fn(|k| {
+                    let start = (k * wp + pad).wrapping_add_signed(dx);
+                    &row[start..start + w]
+                })
             }
-            let pick = |j: usize| Some(j).filter(|&j| same_surface(c, pts[j], r, params));
-            let left = x.checked_sub(r).and_then(|xx| pick(y * w + xx));
-            let right = Some(x + r)
-                .filter(|&xx| xx < w)
-                .and_then(|xx| pick(y * w + xx));
-            let up = y.checked_sub(r).and_then(|yy| pick(yy * w + x));
-            let down = Some(y + r)
-                .filter(|&yy| yy < h)
-                .and_then(|yy| pick(yy * w + x));
-            let du = difference(pts, i, left, right);
-            let dv = difference(pts, i, up, down);
-            let mut n = cross(dv, du);
-            let len = dot(n, n).sqrt();
-            if len.is_nan() || len <= 1e-12 {
-                continue;
+            let at = |row, dx| planes_at(row, (w, wp, pad), dx);
+            let ri = r as isize;
+            let around = [at(row, -ri), at(row, ri), at(up, 0), at(down, 0)];
+            let (nx, rest) = soa.split_at_mut(w);
+            let (ny, nz) = rest.split_at_mut(w);
+            normals_row(at(row, 0), around, r, params, [nx, ny, nz]);
+            for (x, o) in o.iter_mut().enumerate() {
+                *o = [nx[x], ny[x], nz[x]];
             }
-            if dot(n, c) > 0.0 {
-                n = [-n[0], -n[1], -n[2]];
-            }
-            out[i] = [n[0] / len, n[1] / len, n[2] / len];
-        }
+        },
+    );
+}
+
+/// All ones if `on`, else zero: a lane mask for [`keep`] and [`pick`].
+fn mask(on: bool) -> u32 {
+    u32::from(on).wrapping_neg()
+}
+
+/// `v` where `m` is all ones, `+0.0` where it is zero (a select the compiler vectorises).
+fn keep(v: f32, m: u32) -> f32 {
+    f32::from_bits(v.to_bits() & m)
+}
+
+/// `a` where `m` is all ones, `b` where it is zero.
+fn pick(a: f32, b: f32, m: u32) -> f32 {
+    f32::from_bits((a.to_bits() & m) | (b.to_bits() & !m))
+}
+
+/// One row of [`normals`] as planes: centres `c`, their neighbours `r` pixels to the left,
+/// right, up and down in `around`, unit normals into `out` (zero where there is none).
+/// Branch-free, so the compiler vectorises it; the same arithmetic as a test per pixel.
+fn normals_row(
+    c: [&[f32]; 3],
+    around: [[&[f32]; 3]; 4],
+    r: usize,
+    params: &SegmenterParams,
+    out: [&mut [f32]; 3],
+) {
+    let w = c[2].len();
+    let c = c.map(|s| &s[..w]);
+    let [left, right, up, down] = around.map(|q| q.map(|s| &s[..w]));
+    let [ox, oy, oz] = out;
+    let (ox, oy, oz) = (&mut ox[..w], &mut oy[..w], &mut oz[..w]);
+    for x in 0..w {
+        let p = [c[0][x], c[1][x], c[2][x]];
+        let tol = params.depth_jump_at_m(p[2]) * r as f32;
+        // A neighbour on the surface, or the centre itself.
+        let on = |q: &[&[f32]; 3]| {
+            let m = mask((q[2][x] > 0.0) & ((q[2][x] - p[2]).abs() <= tol));
+            [
+                pick(q[0][x], p[0], m),
+                pick(q[1][x], p[1], m),
+                pick(q[2][x], p[2], m),
+            ]
+        };
+        // Both on: b − a; one: the one-sided difference; none: p − p = 0.
+        let du = sub(on(&right), on(&left));
+        let dv = sub(on(&down), on(&up));
+        let n = cross(dv, du);
+        let len = dot(n, n).sqrt();
+        // No normal without a reading or for a degenerate (or NaN) cross product.
+        let ok = mask((p[2] > 0.0) & (len > 1e-12));
+        // Face the camera: flip the sign bit where `n · p > 0`.
+        let flip = mask(dot(n, p) > 0.0) & 0x8000_0000;
+        let unit = |v: f32| keep(f32::from_bits(v.to_bits() ^ flip) / len, ok);
+        ox[x] = unit(n[0]);
+        oy[x] = unit(n[1]);
+        oz[x] = unit(n[2]);
     }
 }
 
@@ -302,8 +503,8 @@ pub(super) fn creases(inp: &CreaseInput<'_>, params: &SegmenterParams, out: &mut
             CREASE_SOFT
         }
     };
-    for y in 0..h {
-        for x in 0..w {
+    out.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+        for (x, out) in out.iter_mut().enumerate() {
             let i = y * w + x;
             if !object[i] {
                 continue;
@@ -317,7 +518,7 @@ pub(super) fn creases(inp: &CreaseInput<'_>, params: &SegmenterParams, out: &mut
             if y >= reach && y + reach < h && object[up] && object[down] {
                 f |= judge(c, i - r * w, i + r * w);
             }
-            out[i] = f;
+            *out = f;
         }
-    }
+    });
 }

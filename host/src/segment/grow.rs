@@ -89,7 +89,11 @@ fn convex(pts: &[P3], nrm: &[P3], i: usize, j: usize) -> bool {
 
 /// `true` if `q` continues `p`'s surface (module docs, rule 1).
 fn continuous(p: P3, np: P3, q: P3, params: &SegmenterParams) -> bool {
-    let jump = params.depth_jump_at_m(p[2]);
+    continuous_within(p, np, q, params.depth_jump_at_m(p[2]))
+}
+
+/// [`continuous`] with `p`'s tolerance `jump` ([`SegmenterParams::depth_jump_at_m`]).
+fn continuous_within(p: P3, np: P3, q: P3, jump: f32) -> bool {
     let dz = (q[2] - p[2]).abs();
     if dz > 3.0 * jump {
         return false;
@@ -98,6 +102,34 @@ fn continuous(p: P3, np: P3, q: P3, params: &SegmenterParams) -> bool {
         dz <= jump
     } else {
         dot(np, sub(q, p)).abs() <= jump
+    }
+}
+
+/// Per-root sums `sums[root] += value` over a run of pixels, with the running sum of the
+/// current root kept in a register: the same additions in the same order (so the same
+/// bits), without a store and reload per pixel.
+#[derive(Debug, Default)]
+struct RootSum {
+    /// The current root and its running sum.
+    run: Option<(u32, f32)>,
+}
+
+impl RootSum {
+    fn add(&mut self, sums: &mut [f32], root: u32, value: f32) {
+        match &mut self.run {
+            Some((r, sum)) if *r == root => *sum += value,
+            _ => {
+                self.flush(sums);
+                self.run = Some((root, sums[root as usize] + value));
+            }
+        }
+    }
+
+    /// Writes the running sum back; call after the last [`Self::add`].
+    fn flush(&mut self, sums: &mut [f32]) {
+        if let Some((r, sum)) = self.run.take() {
+            sums[r as usize] = sum;
+        }
     }
 }
 
@@ -123,32 +155,30 @@ pub(super) fn grow_segments(
     s.comp.clear();
     s.comp
         .extend((0..n as u32).map(|i| if inp.object[i as usize] { i } else { NONE }));
-    // Some(true): join; Some(false): a step; None: not both grown object pixels.
-    let joins = |i: usize, j: usize| {
-        (inp.object[j] && !blocked(i) && !blocked(j)).then(|| {
-            continuous(inp.pts[i], inp.nrm[i], inp.pts[j], params)
-                && (inp.nrm[i] == [0.0; 3]
-                    || inp.nrm[j] == [0.0; 3]
-                    || dot(inp.nrm[i], inp.nrm[j]) >= cos_normal)
-        })
-    };
     step.fill(0);
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
-            if !inp.object[i] {
+            if !inp.object[i] || blocked(i) {
                 continue;
             }
+            let (p, np) = (inp.pts[i], inp.nrm[i]);
+            let jump = params.depth_jump_at_m(p[2]);
             for j in [(x + 1 < w).then_some(i + 1), (y + 1 < h).then_some(i + w)]
                 .into_iter()
                 .flatten()
             {
-                match joins(i, j) {
-                    Some(true) => union(&mut s.comp, i as u32, j as u32),
-                    Some(false) if !convex(inp.pts, inp.nrm, i, j) => {
-                        (step[i], step[j]) = (1, 1);
-                    }
-                    Some(false) | None => {}
+                // Both grown object pixels: join them, or flag a step.
+                if !inp.object[j] || blocked(j) {
+                    continue;
+                }
+                let nq = inp.nrm[j];
+                let joins = continuous_within(p, np, inp.pts[j], jump)
+                    && (np == [0.0; 3] || nq == [0.0; 3] || dot(np, nq) >= cos_normal);
+                if joins {
+                    union(&mut s.comp, i as u32, j as u32);
+                } else if !convex(inp.pts, inp.nrm, i, j) {
+                    (step[i], step[j]) = (1, 1);
                 }
             }
         }
@@ -165,9 +195,20 @@ pub(super) fn grow_segments(
 
     // 2. Crease pixels take the segment of the nearest grown pixel.
     s.queue.clear();
-    for i in 0..n {
-        if s.comp[i] != NONE && neighbours(i, w, h).any(|j| s.comp[j] == NONE && inp.object[j]) {
-            s.queue.push(i as u32);
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            if s.comp[i] == NONE {
+                continue;
+            }
+            let crease = |j: usize| s.comp[j] == NONE && inp.object[j];
+            if (x > 0 && crease(i - 1))
+                || (x + 1 < w && crease(i + 1))
+                || (y > 0 && crease(i - w))
+                || (y + 1 < h && crease(i + w))
+            {
+                s.queue.push(i as u32);
+            }
         }
     }
     let mut head = 0;
@@ -188,11 +229,13 @@ pub(super) fn grow_segments(
     // 3. Areas per root, then small segments join their best large neighbour.
     s.area.clear();
     s.area.resize(n, 0.0);
-    for i in 0..n {
-        if let Some(&r) = s.comp.get(i).filter(|&&r| r != NONE) {
-            s.area[r as usize] += inp.px_area_m2[i];
+    let mut sum = RootSum::default();
+    for (&r, &a) in s.comp.iter().zip(inp.px_area_m2) {
+        if r != NONE {
+            sum.add(&mut s.area, r, a);
         }
     }
+    sum.flush(&mut s.area);
     let small = |area: &[f32], r: u32| area[r as usize] < params.min_segment_area_m2;
     s.pairs.clear();
     for y in 0..h {
@@ -258,6 +301,7 @@ pub(super) fn grow_segments(
     s.first.clear();
     s.first.resize(n, NONE);
     s.order.clear();
+    let mut sum = RootSum::default();
     for i in 0..n {
         let r = s.comp[i];
         if r == NONE {
@@ -267,8 +311,9 @@ pub(super) fn grow_segments(
             s.first[r as usize] = i as u32;
             s.order.push(r);
         }
-        s.area[r as usize] += inp.px_area_m2[i];
+        sum.add(&mut s.area, r, inp.px_area_m2[i]);
     }
+    sum.flush(&mut s.area);
     let count = s.order.len();
     if count > usize::from(u16::MAX) {
         return Err(SegmentError::TooManySegments { count });

@@ -51,10 +51,11 @@
 
 use super::{
     HEAT_CERTAIN, HEAT_UNCERTAIN, SegmenterParams,
-    edt::{EdtScratch, squared_distance},
+    edt::{EdtScratch, Window, squared_distance},
     geometry::{CREASE_SOFT, P3},
     grow::HOLE,
 };
+use crate::par::*;
 
 const SOURCE: u8 = 1;
 const GAP: u8 = 2;
@@ -73,6 +74,7 @@ pub(super) struct HeatScratch {
     mean_z: Vec<(f64, u32)>,
     notch: Vec<u32>,
     moments: Vec<Moments>,
+    cuts: Vec<Option<Cut>>,
     edt: EdtScratch,
 }
 
@@ -108,11 +110,27 @@ pub(super) fn heatmap(
     // Mean depth per segment, for pixels without a reading.
     s.mean_z.clear();
     s.mean_z.resize(inp.segments + 1, (0.0, 0));
-    for (l, p) in labels.iter().zip(inp.pts) {
-        if *l != 0 && p[2] > 0.0 {
-            let m = &mut s.mean_z[usize::from(*l)];
-            *m = (m.0 + f64::from(p[2]), m.1 + 1);
+    // The current label's sum stays in registers along a run of its pixels (the same
+    // additions in the same order).
+    let mut run: Option<(usize, (f64, u32))> = None;
+    for (&l, p) in labels.iter().zip(inp.pts) {
+        if l == 0 || p[2] <= 0.0 {
+            continue;
         }
+        let l = usize::from(l);
+        match &mut run {
+            Some((rl, m)) if *rl == l => *m = (m.0 + f64::from(p[2]), m.1 + 1),
+            _ => {
+                if let Some((rl, m)) = run {
+                    s.mean_z[rl] = m;
+                }
+                let m = s.mean_z[l];
+                run = Some((l, (m.0 + f64::from(p[2]), m.1 + 1)));
+            }
+        }
+    }
+    if let Some((rl, m)) = run {
+        s.mean_z[rl] = m;
     }
     let mean_z: &[(f64, u32)] = &s.mean_z;
     let depth = |i: usize| -> f32 {
@@ -126,12 +144,25 @@ pub(super) fn heatmap(
         }
     };
 
-    // 1a. Contacts and their gaps.
+    // 1a. Contacts and their gaps (and 1b. creases, steps and holes).
     s.mark.clear();
     s.mark.resize(n, 0);
-    for i in 0..n {
+    for (i, (x, y)) in (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).enumerate() {
         let a = labels[i];
         if a == 0 {
+            continue;
+        }
+        // 1b. Creases, steps and holes.
+        if inp.crease[i] & CREASE_SOFT != 0 || inp.step[i] != 0 || inp.hole[i] == HOLE {
+            s.mark[i] |= SOURCE;
+        }
+        // Every scan stops at once where each 4-neighbour is off the image or in `a`.
+        let same = |j: usize| labels[j] == a;
+        if (x == 0 || same(i - 1))
+            && (x + 1 == w || same(i + 1))
+            && (y == 0 || same(i - w))
+            && (y + 1 == h || same(i + w))
+        {
             continue;
         }
         let z = depth(i);
@@ -141,7 +172,7 @@ pub(super) fn heatmap(
         } else {
             0
         };
-        let (x, y) = ((i % w) as isize, (i / w) as isize);
+        let (x, y) = (x as isize, y as isize);
         for (dx, dy) in [(1isize, 0isize), (-1, 0), (0, 1), (0, -1)] {
             // Unlabelled pixels with depth count against the gap; holes do not.
             let mut open = gap_px;
@@ -175,58 +206,90 @@ pub(super) fn heatmap(
         }
     }
 
-    // 1b. Creases, steps and holes.
-    for (i, mark) in s.mark.iter_mut().enumerate() {
-        if labels[i] != 0
-            && (inp.crease[i] & CREASE_SOFT != 0 || inp.step[i] != 0 || inp.hole[i] == HOLE)
-        {
-            *mark |= SOURCE;
-        }
-    }
-
     // 1c. Necks.
     necks(inp, params, &mut s.notch, &mut s.mark);
 
-    // 2. Distance to the background.
+    // 2. Distance to the background. Only segment pixels read the distances, and every
+    // source lies in the segments' bounding box: the distance to the sources is exact
+    // there over the box alone, and the distance to the background over the box grown by a
+    // pixel (a background pixel beyond it is farther than the grown box's edge, which is
+    // background, in both coordinates).
     s.d_source.resize(n, 0.0);
     s.d_background.resize(n, 0.0);
+    let Some(inner) = bounding_box(w, labels) else {
+        return;
+    };
+    let outer = Window {
+        x0: inner.x0.saturating_sub(1),
+        x1: (inner.x1 + 1).min(w),
+        y0: inner.y0.saturating_sub(1),
+        y1: (inner.y1 + 1).min(h),
+    };
     let mark = &s.mark;
     squared_distance(
         w,
-        h,
+        outer,
         |i| labels[i] == 0 && mark[i] & GAP == 0,
         &mut s.edt,
         &mut s.d_background,
     );
 
     // 1d. Packs: segments larger than one object (needs the distance to the background).
-    pack_cuts(inp, params, &s.d_background, &mut s.moments, &mut s.mark);
+    pack_cuts(
+        inp,
+        params,
+        &s.d_background,
+        (&mut s.moments, &mut s.cuts),
+        &mut s.mark,
+    );
 
     // 3. Heat.
     let mark = &s.mark;
-    squared_distance(w, h, |i| mark[i] != 0, &mut s.edt, &mut s.d_source);
-    for (i, (&label, heat)) in labels.iter().zip(heat.iter_mut()).enumerate() {
-        if label == 0 {
-            if s.mark[i] & GAP != 0 {
-                *heat = HEAT_UNCERTAIN;
+    squared_distance(w, inner, |i| mark[i] != 0, &mut s.edt, &mut s.d_source);
+    let (d_source, d_background) = (&s.d_source, &s.d_background);
+    heat.par_chunks_mut(w).enumerate().for_each(|(y, heat)| {
+        for (x, heat) in heat.iter_mut().enumerate() {
+            let i = y * w + x;
+            let label = labels[i];
+            if label == 0 {
+                if mark[i] & GAP != 0 {
+                    *heat = HEAT_UNCERTAIN;
+                }
+                continue;
             }
-            continue;
+            let m_per_px = depth(i) * inp.inv_focal;
+            let d_s = d_source[i].sqrt() * m_per_px;
+            let d_b = d_background[i].sqrt() * m_per_px;
+            *heat = if d_s < params.band_m {
+                let band = f32::from(HEAT_CERTAIN - HEAT_UNCERTAIN);
+                HEAT_UNCERTAIN
+                    + ((band * d_s / params.band_m) as u8).min(HEAT_CERTAIN - HEAT_UNCERTAIN - 1)
+            } else if d_b < params.rim_m {
+                params.rim_heat
+            } else {
+                let t = ((d_s - params.band_m).min(d_b - params.rim_m) / params.certain_ramp_m)
+                    .clamp(0.0, 1.0);
+                HEAT_CERTAIN + (f32::from(u8::MAX - HEAT_CERTAIN) * t) as u8
+            };
         }
-        let m_per_px = depth(i) * inp.inv_focal;
-        let d_s = s.d_source[i].sqrt() * m_per_px;
-        let d_b = s.d_background[i].sqrt() * m_per_px;
-        *heat = if d_s < params.band_m {
-            let band = f32::from(HEAT_CERTAIN - HEAT_UNCERTAIN);
-            HEAT_UNCERTAIN
-                + ((band * d_s / params.band_m) as u8).min(HEAT_CERTAIN - HEAT_UNCERTAIN - 1)
-        } else if d_b < params.rim_m {
-            params.rim_heat
-        } else {
-            let t = ((d_s - params.band_m).min(d_b - params.rim_m) / params.certain_ramp_m)
-                .clamp(0.0, 1.0);
-            HEAT_CERTAIN + (f32::from(u8::MAX - HEAT_CERTAIN) * t) as u8
-        };
+    });
+}
+
+/// The smallest window holding every labelled pixel; `None` if there is none.
+fn bounding_box(w: usize, labels: &[u16]) -> Option<Window> {
+    let rows = |(_, row): &(usize, &[u16])| row.iter().any(|&l| l != 0);
+    let y0 = labels.chunks_exact(w).enumerate().find(rows)?.0;
+    let y1 = labels.chunks_exact(w).enumerate().rfind(rows)?.0 + 1;
+    let (mut x0, mut x1) = (w, 0);
+    for row in labels[y0 * w..y1 * w].chunks_exact(w) {
+        if let Some(first) = row[..x0].iter().position(|&l| l != 0) {
+            x0 = first;
+        }
+        if let Some(last) = row[x1..].iter().rposition(|&l| l != 0) {
+            x1 = x1 + last + 1;
+        }
     }
+    Some(Window { x0, x1, y0, y1 })
 }
 
 /// A unit direction and the length along it, metres.
@@ -286,11 +349,14 @@ fn pack_cuts(
     inp: &HeatInput<'_>,
     params: &SegmenterParams,
     d_background: &[f32],
-    moments: &mut Vec<Moments>,
+    (moments, cuts): (&mut Vec<Moments>, &mut Vec<Option<Cut>>),
     mark: &mut [u8],
 ) {
     moments.clear();
     moments.resize(inp.segments + 1, Moments::default());
+    // Labels are `0..=segments`; label 0 is never cut.
+    cuts.clear();
+    cuts.resize(inp.segments + 1, None);
     // Points are flattened onto the table plane, so an object's sides fold onto its
     // footprint's outline and the axes measure the footprint.
     let n = inp.table_normal.map(f64::from);
@@ -346,28 +412,52 @@ fn pack_cuts(
             }
         };
         let cells = [cells_along(long_m).max(2), cells_along(short_m)];
-        for (i, (&l, &p)) in inp.labels.iter().zip(inp.pts).enumerate() {
-            if usize::from(l) != label || p[2] <= 0.0 {
-                continue;
-            }
-            // A cut is one pixel wide: within half a pixel of a cut position.
-            let half_px_m = 0.5 * f64::from(p[2] * inp.inv_focal);
-            let q = flatten(p);
-            let d = [0, 1, 2].map(|a| q[a] - centre[a]);
-            let on_cut = axes.iter().zip(cells).any(|((axis, len_m), n)| {
-                let along = d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2];
-                // Position in cells from the start of the axis.
-                let pos = (along / len_m + 0.5) * n as f64;
-                let nearest = pos.round();
-                nearest >= 1.0
-                    && nearest <= (n - 1) as f64
-                    && ((pos - nearest) * len_m / n as f64).abs() <= half_px_m
-            });
-            if on_cut {
-                mark[i] |= SOURCE;
-            }
+        cuts[label] = Some(Cut {
+            centre,
+            axes,
+            cells,
+        });
+    }
+    if cuts.iter().all(Option::is_none) {
+        return;
+    }
+    for (i, (&l, &p)) in inp.labels.iter().zip(inp.pts).enumerate() {
+        if l == 0 || p[2] <= 0.0 {
+            continue;
+        }
+        let Some(Cut {
+            centre,
+            axes,
+            cells,
+        }) = cuts.get(usize::from(l)).and_then(Option::as_ref)
+        else {
+            continue;
+        };
+        // A cut is one pixel wide: within half a pixel of a cut position.
+        let half_px_m = 0.5 * f64::from(p[2] * inp.inv_focal);
+        let q = flatten(p);
+        let d = [0, 1, 2].map(|a| q[a] - centre[a]);
+        let on_cut = axes.iter().zip(*cells).any(|((axis, len_m), n)| {
+            let along = d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2];
+            // Position in cells from the start of the axis.
+            let pos = (along / len_m + 0.5) * n as f64;
+            let nearest = pos.round();
+            nearest >= 1.0
+                && nearest <= (n - 1) as f64
+                && ((pos - nearest) * len_m / n as f64).abs() <= half_px_m
+        });
+        if on_cut {
+            mark[i] |= SOURCE;
         }
     }
+}
+
+/// The cut grid of one oversized segment: centroid, in-plane axes and cells per axis.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Cut {
+    centre: [f64; 3],
+    axes: [Axis; 2],
+    cells: [usize; 2],
 }
 
 /// Marks the necks of the segments as sources (module docs, rule 1).
@@ -379,12 +469,13 @@ fn necks(inp: &HeatInput<'_>, params: &SegmenterParams, notch: &mut Vec<u32>, ma
     // Notches: outline pixels (a 4-neighbour unlabelled or off the image) whose disc holds
     // at least `neck_notch_share` of pixels of their own segment.
     notch.clear();
-    for i in 0..w * h {
+    // The last disc's radius and half-widths.
+    let mut disc: (isize, Vec<isize>) = (0, Vec::new());
+    for (i, (x, y)) in (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).enumerate() {
         let (a, z) = (labels[i], inp.pts[i][2]);
         if a == 0 || z <= 0.0 {
             continue;
         }
-        let (x, y) = (i % w, i / w);
         let outline = [
             (x > 0).then(|| i - 1),
             (x + 1 < w).then(|| i + 1),
@@ -397,23 +488,31 @@ fn necks(inp: &HeatInput<'_>, params: &SegmenterParams, notch: &mut Vec<u32>, ma
             continue;
         }
         let r = ((params.neck_radius_m * px_per_m(z)) as isize).clamp(1, MAX_NECK_RADIUS_PX);
+        // The disc row by row: `half[|dy|]` is its half-width at `dy`; pixels off the
+        // image count in `all`, never in `same`.
+        if disc.0 != r {
+            disc.1.clear();
+            disc.1.extend((0..=r).map(|dy| {
+                (0..=r)
+                    .rev()
+                    .find(|dx| dx * dx + dy * dy <= r * r)
+                    .unwrap_or(0)
+            }));
+            disc.0 = r;
+        }
+        let half = &disc.1;
         let (mut same, mut all) = (0u32, 0u32);
         for dy in -r..=r {
-            for dx in -r..=r {
-                if dx * dx + dy * dy > r * r {
-                    continue;
-                }
-                all += 1;
-                let (qx, qy) = (x as isize + dx, y as isize + dy);
-                if qx >= 0
-                    && qy >= 0
-                    && (qx as usize) < w
-                    && (qy as usize) < h
-                    && labels[qy as usize * w + qx as usize] == a
-                {
-                    same += 1;
-                }
+            let hw = half[dy.unsigned_abs()];
+            all += (2 * hw + 1) as u32;
+            let qy = y as isize + dy;
+            if qy < 0 || qy as usize >= h {
+                continue;
             }
+            let lo = (x as isize - hw).max(0) as usize;
+            let hi = ((x as isize + hw) as usize).min(w - 1);
+            let row = &labels[qy as usize * w..(qy as usize + 1) * w];
+            same += row[lo..=hi].iter().map(|&l| u32::from(l == a)).sum::<u32>();
         }
         if same as f32 >= params.neck_notch_share * all as f32 {
             notch.push(i as u32);

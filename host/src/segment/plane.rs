@@ -109,9 +109,10 @@ impl Hull {
             return false;
         }
         let (u, v) = (dot(self.e1, p), dot(self.e2, p));
-        self.edges
-            .iter()
-            .all(|e| e[0] * u + e[1] * v + e[2] >= margin_m)
+        // Every edge, without stopping at the first miss: the compiler vectorises it.
+        self.edges.iter().fold(true, |inside, e| {
+            inside & (e[0] * u + e[1] * v + e[2] >= margin_m)
+        })
     }
 }
 
@@ -120,11 +121,19 @@ impl Hull {
 pub(super) struct PlaneScratch {
     cand: Vec<u32>,
     allowed: Vec<u32>,
-    score: Vec<u32>,
+    samples: Vec<Sample>,
     flat: Vec<[f32; 2]>,
     hull: Vec<[f32; 2]>,
     grid: Vec<u32>,
     queue: Vec<u32>,
+}
+
+/// A RANSAC scoring sample: point, normal and inlier tolerance.
+#[derive(Debug, Clone, Copy)]
+struct Sample {
+    p: P3,
+    n: P3,
+    tol_m: f32,
 }
 
 /// The fitted table: plane, bend and the hull objects must stand in.
@@ -414,9 +423,15 @@ fn ransac(
         return (fallback, 0);
     }
     let bound = m as u32;
-    s.score.clear();
+    // The scoring samples, with their inlier tolerances computed once.
+    s.samples.clear();
     for _ in 0..SCORE_SAMPLES.min(m) {
-        s.score.push(s.allowed[rng.below(bound) as usize]);
+        let i = s.allowed[rng.below(bound) as usize] as usize;
+        s.samples.push(Sample {
+            p: pts[i],
+            n: nrm[i],
+            tol_m: params.plane_tolerance_m(pts[i][2]),
+        });
     }
     let mut best: Option<(TablePlane, usize)> = None;
     for _ in 0..params.ransac_iterations {
@@ -430,11 +445,18 @@ fn ransac(
         {
             continue;
         }
-        let count = s
-            .score
+        // `is_inlier` over the samples.
+        let normal = plane.normal_array();
+        let count: u32 = s
+            .samples
             .iter()
-            .filter(|&&i| is_inlier(&plane, pts[i as usize], nrm[i as usize], cos_normal, params))
-            .count();
+            .map(|q| {
+                u32::from(
+                    (plane.height_of(q.p).abs() <= q.tol_m) & (dot(normal, q.n) >= cos_normal),
+                )
+            })
+            .sum();
+        let count = count as usize;
         if best.is_none_or(|(_, n)| count > n) {
             best = Some((plane, count));
         }

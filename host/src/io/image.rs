@@ -22,14 +22,14 @@
 
 use std::{
     borrow::Cow,
-    io::{self, Cursor},
+    io::{self, Cursor, Write as _},
     path::{Path, PathBuf},
 };
 
 use riseg_core::ImageView;
 
 use super::files::{DiskFiles, Files};
-use super::write_atomic;
+use super::{write_atomic, write_atomic_with};
 
 use image::{
     DynamicImage, ExtendedColorType, ImageDecoder as _, ImageEncoder,
@@ -650,11 +650,8 @@ pub enum FloFormatError {
     },
 }
 
-/// The `.flo` bytes of `flow`.
-///
-/// # Errors
-/// [`FloFormatError::Unwritable`] if a side is zero or above [`FLO_MAX_SIDE_PX`].
-pub fn encode_flo(flow: &FlowImage) -> Result<Vec<u8>, FloFormatError> {
+/// The `.flo` header of `flow`: magic, width, height.
+fn flo_header(flow: &FlowImage) -> Result<[u8; FLO_HEADER_BYTES], FloFormatError> {
     let side_ok = |s: usize| s > 0 && s <= FLO_MAX_SIDE_PX as usize;
     if !side_ok(flow.width) || !side_ok(flow.height) {
         return Err(FloFormatError::Unwritable {
@@ -662,18 +659,33 @@ pub fn encode_flo(flow: &FlowImage) -> Result<Vec<u8>, FloFormatError> {
             height: flow.height,
         });
     }
-    let mut bytes = vec![0u8; FLO_HEADER_BYTES + flow.data.len() * 8];
-    let (header, body) = bytes.split_at_mut(FLO_HEADER_BYTES);
+    let mut header = [0u8; FLO_HEADER_BYTES];
     header[..4].copy_from_slice(&FLO_MAGIC.to_le_bytes());
     // Both sides are at most FLO_MAX_SIDE_PX, so they fit in i32.
     header[4..8].copy_from_slice(&(flow.width as i32).to_le_bytes());
     header[8..12].copy_from_slice(&(flow.height as i32).to_le_bytes());
-    // One pass over a zero-filled (lazily mapped) buffer: no per-value growth checks.
-    for (out, [dx, dy]) in body.as_chunks_mut::<8>().0.iter_mut().zip(&flow.data) {
-        let (x, y) = out.split_at_mut(4);
+    Ok(header)
+}
+
+/// The `.flo` body bytes of `vectors` into `out` (8 bytes per vector).
+fn encode_flo_body(vectors: &[[f32; 2]], out: &mut [u8]) {
+    for (o, [dx, dy]) in out.as_chunks_mut::<8>().0.iter_mut().zip(vectors) {
+        let (x, y) = o.split_at_mut(4);
         x.copy_from_slice(&dx.to_le_bytes());
         y.copy_from_slice(&dy.to_le_bytes());
     }
+}
+
+/// The `.flo` bytes of `flow`.
+///
+/// # Errors
+/// [`FloFormatError::Unwritable`] if a side is zero or above [`FLO_MAX_SIDE_PX`].
+pub fn encode_flo(flow: &FlowImage) -> Result<Vec<u8>, FloFormatError> {
+    let header = flo_header(flow)?;
+    let mut bytes = vec![0u8; FLO_HEADER_BYTES + flow.data.len() * 8];
+    let (head, body) = bytes.split_at_mut(FLO_HEADER_BYTES);
+    head.copy_from_slice(&header);
+    encode_flo_body(&flow.data, body);
     Ok(bytes)
 }
 
@@ -761,9 +773,21 @@ pub fn read_flo_in(files: &impl Files, path: &Path) -> Result<FlowImage, ImageIo
 /// # Errors
 /// An image side above [`FLO_MAX_SIDE_PX`] (or zero), or I/O errors, naming `path`.
 pub fn write_flo(path: &Path, flow: &FlowImage) -> Result<(), ImageIoError> {
-    let bytes =
-        encode_flo(flow).map_err(|e| ImageIoError::new(path, ImageProblem::CorruptFlo(e)))?;
-    write_file(path, &bytes)
+    let header =
+        flo_header(flow).map_err(|e| ImageIoError::new(path, ImageProblem::CorruptFlo(e)))?;
+    // Encoded and written a piece at a time: the whole file never sits in memory.
+    const PIECE_VECTORS: usize = 8192;
+    let mut piece = vec![0u8; PIECE_VECTORS * 8];
+    write_atomic_with(path, |file| {
+        file.write_all(&header)?;
+        for vectors in flow.data.chunks(PIECE_VECTORS) {
+            let bytes = &mut piece[..vectors.len() * 8];
+            encode_flo_body(vectors, bytes);
+            file.write_all(bytes)?;
+        }
+        Ok(())
+    })
+    .map_err(|e| ImageIoError::new(path, ImageProblem::Io(e)))
 }
 
 #[cfg(test)]

@@ -8,50 +8,12 @@
 
 use super::pool::Pool;
 use super::pyramid::{Padded, Tap};
-use super::search::{Grid, PatchFlow, Template};
-use crate::par::*;
+use super::search::{Grid, LANES, PatchFlow, Template, lanes, lanes_mut, with_patch_size};
+use wide::f32x4;
 
-/// Runs `$body` with the const `$n` set to the patch side `$size` (a multiple of 4 in
-/// `4..=32`, as `FlowParams` validates; anything else runs as 32), so that every loop over
-/// a patch row has a length known at compile time.
-macro_rules! with_patch_size {
-    ($size:expr, $n:ident => $body:expr) => {
-        match $size {
-            4 => {
-                const $n: usize = 4;
-                $body
-            }
-            8 => {
-                const $n: usize = 8;
-                $body
-            }
-            12 => {
-                const $n: usize = 12;
-                $body
-            }
-            16 => {
-                const $n: usize = 16;
-                $body
-            }
-            20 => {
-                const $n: usize = 20;
-                $body
-            }
-            24 => {
-                const $n: usize = 24;
-                $body
-            }
-            28 => {
-                const $n: usize = 28;
-                $body
-            }
-            _ => {
-                const $n: usize = 32;
-                $body
-            }
-        }
-    };
-}
+/// One in every lane.
+const ONE: f32x4 = f32x4::splat(1.0);
+use crate::par::*;
 
 /// Dense `w x h` flow from the patch flows of one level (`patches` row-major over the
 /// grid, which covers every pixel).
@@ -105,17 +67,26 @@ fn densify_n<const N: usize>(
                 for ((&px, p), tap) in xs.iter().zip(row_patches).zip(row_taps) {
                     let a = &i1.data[tap.index + r * i1.stride..][..=N];
                     let b = &i1.data[tap.index + (r + 1) * i1.stride..][..=N];
-                    let (a0, a1, b0, b1) = (&a[..N], &a[1..], &b[..N], &b[1..]);
-                    let tc = &t_row[px..][..N];
-                    let (cw, cu, cv) = (&mut sw[px..][..N], &mut su[px..][..N], &mut sv[px..][..N]);
-                    for k in 0..N {
-                        let s =
-                            tap.w00 * a0[k] + tap.w01 * a1[k] + tap.w10 * b0[k] + tap.w11 * b1[k];
-                        let d = (s - tc[k] - p.offset).abs();
-                        let lambda = 1.0 / d.max(1.0);
-                        cw[k] += lambda;
-                        cu[k] += lambda * p.u;
-                        cv[k] += lambda * p.v;
+                    let (a0, a1) = (lanes::<N>(a), lanes::<N>(&a[1..]));
+                    let (b0, b1) = (lanes::<N>(b), lanes::<N>(&b[1..]));
+                    let tc = lanes::<N>(&t_row[px..]);
+                    let (cw, cu, cv) = (
+                        lanes_mut::<N>(&mut sw[px..]),
+                        lanes_mut::<N>(&mut su[px..]),
+                        lanes_mut::<N>(&mut sv[px..]),
+                    );
+                    let [w00, w01, w10, w11] =
+                        [tap.w00, tap.w01, tap.w10, tap.w11].map(f32x4::splat);
+                    let (offset, u, v) =
+                        (f32x4::splat(p.offset), f32x4::splat(p.u), f32x4::splat(p.v));
+                    for (g, ((cw, cu), cv)) in cw.iter_mut().zip(cu).zip(cv).enumerate() {
+                        let at = |s: &[[f32; LANES]]| f32x4::new(s[g]);
+                        let s = w00 * at(a0) + w01 * at(a1) + w10 * at(b0) + w11 * at(b1);
+                        let d = (s - at(tc) - offset).abs();
+                        let lambda = ONE / d.max(ONE);
+                        *cw = (f32x4::new(*cw) + lambda).to_array();
+                        *cu = (f32x4::new(*cu) + lambda * u).to_array();
+                        *cv = (f32x4::new(*cv) + lambda * v).to_array();
                     }
                 }
             }

@@ -187,26 +187,25 @@ struct PatchModel {
 }
 
 impl PatchModel {
-    fn new(t: &Template<'_>, px: usize, py: usize, size: usize, mean_norm: bool) -> Self {
-        // Column-wise sums (element-wise loops vectorise), then a fixed-order total.
-        let size = size.min(MAX_PATCH_PX);
-        let mut cols = [[0.0f32; MAX_PATCH_PX]; 5];
-        for row in 0..size {
+    fn new<const N: usize>(t: &Template<'_>, px: usize, py: usize, mean_norm: bool) -> Self {
+        // Column-wise sums (one lane per column), then a fixed-order total.
+        let mut cols = [[f32x4::ZERO; 5]; MAX_PATCH_PX / LANES];
+        let cols = &mut cols[..N / LANES];
+        for row in 0..N {
             let off = (py + row) * t.w + px;
-            let (gx, gy) = (&t.gx[off..][..size], &t.gy[off..][..size]);
-            let [cxx, cxy, cyy, cx, cy] = &mut cols;
-            let (cxx, cxy, cyy) = (&mut cxx[..size], &mut cxy[..size], &mut cyy[..size]);
-            let (cx, cy) = (&mut cx[..size], &mut cy[..size]);
-            for k in 0..size {
-                cxx[k] += gx[k] * gx[k];
-                cxy[k] += gx[k] * gy[k];
-                cyy[k] += gy[k] * gy[k];
-                cx[k] += gx[k];
-                cy[k] += gy[k];
+            let (gx, gy) = (lanes::<N>(&t.gx[off..]), lanes::<N>(&t.gy[off..]));
+            for (g, [cxx, cxy, cyy, cx, cy]) in cols.iter_mut().enumerate() {
+                let (gx, gy) = (f32x4::new(gx[g]), f32x4::new(gy[g]));
+                *cxx += gx * gx;
+                *cxy += gx * gy;
+                *cyy += gy * gy;
+                *cx += gx;
+                *cy += gy;
             }
         }
-        let [sxx, sxy, syy, sx, sy] = cols.map(|c| c[..size].iter().sum::<f32>());
-        let n = (size * size) as f32;
+        let [sxx, sxy, syy, sx, sy] =
+            core::array::from_fn(|j| cols.iter().flat_map(|c| c[j].to_array()).sum::<f32>());
+        let n = (N * N) as f32;
         let (mgx, mgy) = if mean_norm {
             (sx / n, sy / n)
         } else {
@@ -352,7 +351,7 @@ fn search_level_n<const N: usize>(
     let models: Vec<PatchModel> = ys
         .iter()
         .flat_map(|&py| xs.iter().map(move |&px| (px, py)))
-        .map(|(px, py)| PatchModel::new(t, px, py, size, mn))
+        .map(|(px, py)| PatchModel::new::<N>(t, px, py, mn))
         .collect();
     let mut state = vec![
         State {

@@ -22,6 +22,7 @@
 
 use super::pool::Pool;
 use crate::par::*;
+use wide::f32x4;
 
 /// Settings of the refinement.
 #[derive(Debug, Clone, Copy)]
@@ -277,12 +278,12 @@ fn warp(
                     let (ax, ay) = (xw - ix as f32, yw - iy as f32);
                     let at = iy.unsigned_abs() as usize * stride + ix.unsigned_abs() as usize;
                     if let Some(q) = src.get(at..at + stride + 2) {
-                        let lerp = |p: [f32; 4], q: [f32; 4], t: f32| -> [f32; 4] {
-                            core::array::from_fn(|i| p[i] + t * (q[i] - p[i]))
-                        };
-                        let top = lerp(q[0], q[1], ax);
-                        let bottom = lerp(q[stride], q[stride + 1], ax);
-                        let v = lerp(top, bottom, ay);
+                        // All four channels at once, each as `p + t·(q − p)`.
+                        let lerp = |p: f32x4, q: f32x4, t: f32| p + f32x4::splat(t) * (q - p);
+                        let at = |i: usize| f32x4::new(q[i]);
+                        let top = lerp(at(0), at(1), ax);
+                        let bottom = lerp(at(stride), at(stride + 1), ax);
+                        let v = lerp(top, bottom, ay).to_array();
                         d = [0.5 * (v[1] + gx0[x]), 0.5 * (v[2] + gy0[x]), v[0] - i0[x]];
                     }
                 }

@@ -1,9 +1,11 @@
 //! Writes image pairs with exact ground-truth flow into a folder, then times riseg's DIS
 //! flow on them on one thread and prints endpoint errors. Two kinds of pairs, 640x480:
 //! `--kind textured` (default), textured rigid objects on a textured background moved by
-//! `riseg::testkit::flow`; `--kind sim`, the first push of the simulator's scenes (the
-//! frames `riseg gen` writes, colour rounded to 8 bits; flow unknown where a pixel has no
-//! 3-D point, 1e10 in the `.flo`, is skipped).
+//! `riseg::testkit::flow`; `--kind sim`, the first push of the simulator's loose scenes
+//! (the frames `riseg gen` writes, colour rounded to 8 bits; flow unknown where a pixel
+//! has no 3-D point, 1e10 in the `.flo`, is skipped); `--kind packed`, the same with the
+//! packed family's look-alike boxes (`riseg gen --layout packed`). Pair `i` uses seed
+//! `--seed + i`.
 //!
 //! ```sh
 //! cargo run --release -p riseg --example flow_pairs -- /tmp/flow-pairs --pairs 6 --runs 7
@@ -52,7 +54,8 @@ struct Args {
     /// Print one row per pair as well.
     #[arg(long)]
     per_pair: bool,
-    /// Which pairs: `textured` (rigid textured objects) or `sim` (simulator pushes).
+    /// Which pairs: `textured` (rigid textured objects), `sim` (simulator pushes, loose
+    /// layout) or `packed` (simulator pushes, packed layout).
     #[arg(long, default_value = "textured")]
     kind: String,
 }
@@ -88,10 +91,10 @@ fn textured_pair(w: usize, h: usize, seed: u64) -> Result<Written> {
     })
 }
 
-/// Frames 0 and 1 of the simulated scene `seed` (one scripted push), with the exact flow;
-/// moving = object pixels whose true flow is known and longer than 0.1 px.
-fn sim_pair(seed: u64) -> Result<Written> {
-    let g = riseg::cli::generate::generate_scene(seed, riseg::sim::Layout::Loose, 1)?;
+/// Frames 0 and 1 of the simulated scene `seed` of `layout` (one scripted push), with the
+/// exact flow; moving = object pixels whose true flow is known and longer than 0.1 px.
+fn sim_pair(seed: u64, layout: riseg::sim::Layout) -> Result<Written> {
+    let g = riseg::cli::generate::generate_scene(seed, layout, 1)?;
     let s = &g.scene;
     let (w, h) = (s.camera.width, s.camera.height);
     let flow = s
@@ -159,8 +162,9 @@ fn main() -> Result<()> {
         let seed = args.seed + i as u64;
         let p = match args.kind.as_str() {
             "textured" => textured_pair(w, h, seed)?,
-            "sim" => sim_pair(seed)?,
-            other => anyhow::bail!("unknown --kind {other:?} (textured or sim)"),
+            "sim" => sim_pair(seed, riseg::sim::Layout::Loose)?,
+            "packed" => sim_pair(seed, riseg::sim::Layout::Packed)?,
+            other => anyhow::bail!("unknown --kind {other:?} (textured, sim or packed)"),
         };
         write_rgb8(&args.dir.join(format!("{name}_a.png")), &p.first)?;
         write_rgb8(&args.dir.join(format!("{name}_b.png")), &p.second)?;

@@ -8,7 +8,11 @@
 
 use super::pool::Pool;
 use super::pyramid::{Padded, Tap};
-use super::search::{Grid, PatchFlow, Template};
+use super::search::{Grid, LANES, PatchFlow, Template, lanes, lanes_mut, with_patch_size};
+use wide::f32x4;
+
+/// One in every lane.
+const ONE: f32x4 = f32x4::splat(1.0);
 use crate::par::*;
 
 /// Dense `w x h` flow from the patch flows of one level (`patches` row-major over the
@@ -22,7 +26,20 @@ pub(crate) fn densify(
     pool: &Pool,
     flows: &Pool<[f32; 2]>,
 ) -> Vec<[f32; 2]> {
-    let (xs, ys, size) = (grid.xs, grid.ys, grid.size);
+    with_patch_size!(grid.size, N => densify_n::<N>(t, i1, patches, grid, h, pool, flows))
+}
+
+/// [`densify`] for patches of side `N` (`grid.size`).
+fn densify_n<const N: usize>(
+    t: &Template<'_>,
+    i1: &Padded,
+    patches: &[PatchFlow],
+    grid: &Grid<'_>,
+    h: usize,
+    pool: &Pool,
+    flows: &Pool<[f32; 2]>,
+) -> Vec<[f32; 2]> {
+    let (xs, ys, size) = (grid.xs, grid.ys, N);
     let w = t.w;
     // Sums of weight, weight·u and weight·v in separate planes (element-wise loops).
     // Each patch's bilinear taps, computed once (every row of the patch reuses them).
@@ -48,23 +65,28 @@ pub(crate) fn densify(
                 let row_patches = &patches[j * xs.len()..][..xs.len()];
                 let row_taps = &taps[j * xs.len()..][..xs.len()];
                 for ((&px, p), tap) in xs.iter().zip(row_patches).zip(row_taps) {
-                    let a = &i1.data[tap.index + r * i1.stride..][..size + 1];
-                    let b = &i1.data[tap.index + (r + 1) * i1.stride..][..size + 1];
-                    let (a0, a1, b0, b1) = (&a[..size], &a[1..], &b[..size], &b[1..]);
-                    let tc = &t_row[px..][..size];
+                    let a = &i1.data[tap.index + r * i1.stride..][..=N];
+                    let b = &i1.data[tap.index + (r + 1) * i1.stride..][..=N];
+                    let (a0, a1) = (lanes::<N>(a), lanes::<N>(&a[1..]));
+                    let (b0, b1) = (lanes::<N>(b), lanes::<N>(&b[1..]));
+                    let tc = lanes::<N>(&t_row[px..]);
                     let (cw, cu, cv) = (
-                        &mut sw[px..][..size],
-                        &mut su[px..][..size],
-                        &mut sv[px..][..size],
+                        lanes_mut::<N>(&mut sw[px..]),
+                        lanes_mut::<N>(&mut su[px..]),
+                        lanes_mut::<N>(&mut sv[px..]),
                     );
-                    for k in 0..size {
-                        let s =
-                            tap.w00 * a0[k] + tap.w01 * a1[k] + tap.w10 * b0[k] + tap.w11 * b1[k];
-                        let d = (s - tc[k] - p.offset).abs();
-                        let lambda = 1.0 / d.max(1.0);
-                        cw[k] += lambda;
-                        cu[k] += lambda * p.u;
-                        cv[k] += lambda * p.v;
+                    let [w00, w01, w10, w11] =
+                        [tap.w00, tap.w01, tap.w10, tap.w11].map(f32x4::splat);
+                    let (offset, u, v) =
+                        (f32x4::splat(p.offset), f32x4::splat(p.u), f32x4::splat(p.v));
+                    for (g, ((cw, cu), cv)) in cw.iter_mut().zip(cu).zip(cv).enumerate() {
+                        let at = |s: &[[f32; LANES]]| f32x4::new(s[g]);
+                        let s = w00 * at(a0) + w01 * at(a1) + w10 * at(b0) + w11 * at(b1);
+                        let d = (s - at(tc) - offset).abs();
+                        let lambda = ONE / d.max(ONE);
+                        *cw = (f32x4::new(*cw) + lambda).to_array();
+                        *cu = (f32x4::new(*cu) + lambda * u).to_array();
+                        *cv = (f32x4::new(*cv) + lambda * v).to_array();
                     }
                 }
             }

@@ -314,11 +314,18 @@ impl DisFlow {
         let mut p0: Vec<Plane> = Vec::with_capacity(coarsest);
         let mut p1: Vec<Plane> = Vec::with_capacity(coarsest);
         for l in 1..=coarsest {
+            let pool = &*self.buffers;
             let (a, b) = if l == 1 {
-                (downsample(first, w, h), downsample(second, w, h))
+                (
+                    downsample(first, w, h, pool),
+                    downsample(second, w, h, pool),
+                )
             } else {
                 let (a, b) = (&p0[l - 2], &p1[l - 2]);
-                (downsample(&a.data, a.w, a.h), downsample(&b.data, b.w, b.h))
+                (
+                    downsample(&a.data, a.w, a.h, pool),
+                    downsample(&b.data, b.w, b.h, pool),
+                )
             };
             p0.push(a);
             p1.push(b);
@@ -358,6 +365,9 @@ impl DisFlow {
                 variational_iters: prm.polish_variational_iters,
             };
             self.level(first, second, w, h, &mut flow, &step);
+        }
+        for p in p0.into_iter().chain(p1) {
+            self.buffers.put(p.data);
         }
         Image::from_vec(w, h, flow).expect("the flow field has one vector per pixel")
     }
@@ -402,7 +412,7 @@ impl DisFlow {
         self.flows.put(core::mem::replace(flow, dense));
         if step.variational_iters > 0 {
             let (gx1, gy1) = gradients(i1, w, h, pool);
-            let second = Warpable::new(i1, &gx1, &gy1, w, h);
+            let second = Warpable::new(i1, &gx1, &gy1, (w, h), pool);
             pool.put(gx1);
             pool.put(gy1);
             let inp = RefineInput {
@@ -421,6 +431,7 @@ impl DisFlow {
                 delta: prm.data_weight,
             };
             refine(&inp, flow, &settings, pool);
+            second.recycle(pool);
         }
         pool.put(i1p.data);
         pool.put(gx0);

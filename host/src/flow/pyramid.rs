@@ -18,9 +18,9 @@ pub(crate) struct Plane {
 }
 
 /// Half the size (floor), each pixel the mean of a 2x2 block of `src` (`w x h`).
-pub(crate) fn downsample(src: &[f32], w: usize, h: usize) -> Plane {
+pub(crate) fn downsample(src: &[f32], w: usize, h: usize, pool: &Pool) -> Plane {
     let (w2, h2) = (w / 2, h / 2);
-    let mut data = vec![0.0f32; w2 * h2];
+    let mut data = pool.scratch(w2 * h2);
     if w2 > 0 {
         data.par_chunks_mut(w2).enumerate().for_each(|(y, out)| {
             let r0 = &src[2 * y * w..][..2 * w2];
@@ -211,7 +211,7 @@ mod tests {
     #[test]
     fn downsample_averages_blocks() {
         let src: Vec<f32> = (0..15).map(|v| v as f32).collect();
-        let d = downsample(&src, 5, 3);
+        let d = downsample(&src, 5, 3, &Pool::default());
         assert_eq!((d.w, d.h), (2, 1));
         assert_eq!(d.data, vec![3.0, 5.0]);
     }

@@ -16,6 +16,7 @@
 
 use super::pyramid::Padded;
 use crate::par::*;
+use wide::f32x4;
 
 /// Top-left corners of patches of side `size` every `stride` pixels along a side of
 /// `len >= size` pixels; the last patch is moved in so that it ends at the border.
@@ -76,55 +77,103 @@ struct Stats {
 /// Largest patch side the search supports (`FlowParams` validates against it).
 pub(crate) const MAX_PATCH_PX: usize = 32;
 
-/// Sums over the patch. Column-wise accumulators keep every loop element-wise (so it
-/// vectorises) and the summation order fixed.
+/// Lanes of the patch loops: patch sides are multiples of 4, so every patch row splits into
+/// [`f32x4`] groups.
+pub(crate) const LANES: usize = 4;
+
+/// Runs `$body` with the const `$n` set to the patch side `$size` (a multiple of 4 in
+/// `4..=32`, as `FlowParams` validates; anything else runs as 32), so that every loop over
+/// a patch has a length known at compile time.
+macro_rules! with_patch_size {
+    ($size:expr, $n:ident => $body:expr) => {
+        match $size {
+            4 => {
+                const $n: usize = 4;
+                $body
+            }
+            8 => {
+                const $n: usize = 8;
+                $body
+            }
+            12 => {
+                const $n: usize = 12;
+                $body
+            }
+            16 => {
+                const $n: usize = 16;
+                $body
+            }
+            20 => {
+                const $n: usize = 20;
+                $body
+            }
+            24 => {
+                const $n: usize = 24;
+                $body
+            }
+            28 => {
+                const $n: usize = 28;
+                $body
+            }
+            _ => {
+                const $n: usize = 32;
+                $body
+            }
+        }
+    };
+}
+pub(crate) use with_patch_size;
+
+/// The first `N` values of `s` as lane groups.
 #[inline]
-fn stats(
+pub(crate) fn lanes<const N: usize>(s: &[f32]) -> &[[f32; LANES]] {
+    s[..N].as_chunks::<LANES>().0
+}
+
+/// The first `N` values of `s` as mutable lane groups.
+#[inline]
+pub(crate) fn lanes_mut<const N: usize>(s: &mut [f32]) -> &mut [[f32; LANES]] {
+    s[..N].as_chunks_mut::<LANES>().0
+}
+
+/// Sums over the `N x N` patch. Column-wise accumulators (one lane per column) keep the
+/// summation order fixed: each column sums its rows top to bottom, then the columns are
+/// added left to right.
+#[inline]
+fn stats<const N: usize>(
     t: &Template<'_>,
     i1: &Padded,
-    px: usize,
-    py: usize,
-    u: f32,
-    v: f32,
-    size: usize,
+    (px, py): (usize, usize),
+    (u, v): (f32, f32),
 ) -> Stats {
-    let size = size.min(MAX_PATCH_PX);
-    let tap = i1.tap(px as f32 + u, py as f32 + v, size);
-    let (w00, w01, w10, w11) = (tap.w00, tap.w01, tap.w10, tap.w11);
-    let mut r = [0.0f32; MAX_PATCH_PX];
-    let mut gxr = [0.0f32; MAX_PATCH_PX];
-    let mut gyr = [0.0f32; MAX_PATCH_PX];
-    let mut rr = [0.0f32; MAX_PATCH_PX];
-    let (r, gxr, gyr, rr) = (
-        &mut r[..size],
-        &mut gxr[..size],
-        &mut gyr[..size],
-        &mut rr[..size],
-    );
-    for row in 0..size {
-        let a = &i1.data[tap.index + row * i1.stride..][..size + 1];
-        let b = &i1.data[tap.index + (row + 1) * i1.stride..][..size + 1];
-        let (a0, a1, b0, b1) = (&a[..size], &a[1..], &b[..size], &b[1..]);
+    let tap = i1.tap(px as f32 + u, py as f32 + v, N);
+    let [w00, w01, w10, w11] = [tap.w00, tap.w01, tap.w10, tap.w11].map(f32x4::splat);
+    // Per lane group: the column sums of r, gx·r, gy·r and r².
+    let mut acc = [[f32x4::ZERO; 4]; MAX_PATCH_PX / LANES];
+    let acc = &mut acc[..N / LANES];
+    for row in 0..N {
+        let a = &i1.data[tap.index + row * i1.stride..][..=N];
+        let b = &i1.data[tap.index + (row + 1) * i1.stride..][..=N];
         let off = (py + row) * t.w + px;
-        let (ti, gx, gy) = (
-            &t.i0[off..][..size],
-            &t.gx[off..][..size],
-            &t.gy[off..][..size],
-        );
-        for k in 0..size {
-            let d = w00 * a0[k] + w01 * a1[k] + w10 * b0[k] + w11 * b1[k] - ti[k];
-            r[k] += d;
-            gxr[k] += gx[k] * d;
-            gyr[k] += gy[k] * d;
-            rr[k] += d * d;
+        let (a0, a1) = (lanes::<N>(a), lanes::<N>(&a[1..]));
+        let (b0, b1) = (lanes::<N>(b), lanes::<N>(&b[1..]));
+        let (ti, gx) = (lanes::<N>(&t.i0[off..]), lanes::<N>(&t.gx[off..]));
+        let gy = lanes::<N>(&t.gy[off..]);
+        for (g, [r, gxr, gyr, rr]) in acc.iter_mut().enumerate() {
+            let at = |s: &[[f32; LANES]]| f32x4::new(s[g]);
+            let d = w00 * at(a0) + w01 * at(a1) + w10 * at(b0) + w11 * at(b1) - at(ti);
+            *r += d;
+            *gxr += at(gx) * d;
+            *gyr += at(gy) * d;
+            *rr += d * d;
         }
     }
-    let sum = |s: &[f32]| s.iter().sum::<f32>();
+    let sum = |j: usize| acc.iter().flat_map(|a| a[j].to_array()).sum::<f32>();
     Stats {
-        r: sum(r),
-        gxr: sum(gxr),
-        gyr: sum(gyr),
-        rr: sum(rr),
+        r: sum(0),
+        gxr: sum(1),
+        gyr: sum(2),
+        rr: sum(3),
     }
 }
 
@@ -138,26 +187,25 @@ struct PatchModel {
 }
 
 impl PatchModel {
-    fn new(t: &Template<'_>, px: usize, py: usize, size: usize, mean_norm: bool) -> Self {
-        // Column-wise sums (element-wise loops vectorise), then a fixed-order total.
-        let size = size.min(MAX_PATCH_PX);
-        let mut cols = [[0.0f32; MAX_PATCH_PX]; 5];
-        for row in 0..size {
+    fn new<const N: usize>(t: &Template<'_>, px: usize, py: usize, mean_norm: bool) -> Self {
+        // Column-wise sums (one lane per column), then a fixed-order total.
+        let mut cols = [[f32x4::ZERO; 5]; MAX_PATCH_PX / LANES];
+        let cols = &mut cols[..N / LANES];
+        for row in 0..N {
             let off = (py + row) * t.w + px;
-            let (gx, gy) = (&t.gx[off..][..size], &t.gy[off..][..size]);
-            let [cxx, cxy, cyy, cx, cy] = &mut cols;
-            let (cxx, cxy, cyy) = (&mut cxx[..size], &mut cxy[..size], &mut cyy[..size]);
-            let (cx, cy) = (&mut cx[..size], &mut cy[..size]);
-            for k in 0..size {
-                cxx[k] += gx[k] * gx[k];
-                cxy[k] += gx[k] * gy[k];
-                cyy[k] += gy[k] * gy[k];
-                cx[k] += gx[k];
-                cy[k] += gy[k];
+            let (gx, gy) = (lanes::<N>(&t.gx[off..]), lanes::<N>(&t.gy[off..]));
+            for (g, [cxx, cxy, cyy, cx, cy]) in cols.iter_mut().enumerate() {
+                let (gx, gy) = (f32x4::new(gx[g]), f32x4::new(gy[g]));
+                *cxx += gx * gx;
+                *cxy += gx * gy;
+                *cyy += gy * gy;
+                *cx += gx;
+                *cy += gy;
             }
         }
-        let [sxx, sxy, syy, sx, sy] = cols.map(|c| c[..size].iter().sum::<f32>());
-        let n = (size * size) as f32;
+        let [sxx, sxy, syy, sx, sy] =
+            core::array::from_fn(|j| cols.iter().flat_map(|c| c[j].to_array()).sum::<f32>());
+        let n = (N * N) as f32;
         let (mgx, mgy) = if mean_norm {
             (sx / n, sy / n)
         } else {
@@ -205,8 +253,8 @@ impl PatchModel {
 /// worth an evaluation.
 const PROPAGATION_MIN_PX: f32 = 0.05;
 
-/// Everything one patch search needs besides its position and start.
-struct Ctx<'a> {
+/// Everything one search of `N x N` patches needs besides a patch's position and start.
+struct Ctx<'a, const N: usize> {
     t: &'a Template<'a>,
     i1: &'a Padded,
     s: &'a SearchSettings,
@@ -222,9 +270,9 @@ struct State {
     r: f32,
 }
 
-impl Ctx<'_> {
+impl<const N: usize> Ctx<'_, N> {
     fn eval(&self, m: &PatchModel, px: usize, py: usize, u: f32, v: f32) -> (State, Stats) {
-        let st = stats(self.t, self.i1, px, py, u, v, self.s.size);
+        let st = stats::<N>(self.t, self.i1, (px, py), (u, v));
         let ssd = m.ssd(&st, self.s.mean_normalization);
         (State { u, v, ssd, r: st.r }, st)
     }
@@ -284,14 +332,26 @@ pub(crate) fn search_level(
     ys: &[usize],
     s: &SearchSettings,
 ) -> Vec<PatchFlow> {
+    with_patch_size!(s.size, N => search_level_n::<N>(t, i1, init, xs, ys, s))
+}
+
+/// [`search_level`] for patches of side `N` (`s.size`).
+fn search_level_n<const N: usize>(
+    t: &Template<'_>,
+    i1: &Padded,
+    init: &[[f32; 2]],
+    xs: &[usize],
+    ys: &[usize],
+    s: &SearchSettings,
+) -> Vec<PatchFlow> {
     let (nx, ny) = (xs.len(), ys.len());
-    let size = s.size;
+    let size = N;
     let mn = s.mean_normalization;
-    let ctx = Ctx { t, i1, s };
+    let ctx = Ctx::<N> { t, i1, s };
     let models: Vec<PatchModel> = ys
         .iter()
         .flat_map(|&py| xs.iter().map(move |&px| (px, py)))
-        .map(|(px, py)| PatchModel::new(t, px, py, size, mn))
+        .map(|(px, py)| PatchModel::new::<N>(t, px, py, mn))
         .collect();
     let mut state = vec![
         State {
@@ -344,8 +404,8 @@ pub(crate) fn search_level(
 
 /// One propagation pass over lines of `len` patches (line `j`, position `i` is the patch
 /// at `pos(j, i)`), forwards or backwards along each line, lines in parallel.
-fn sweep_lines(
-    ctx: &Ctx<'_>,
+fn sweep_lines<const N: usize>(
+    ctx: &Ctx<'_, N>,
     state: &mut [State],
     models: &[PatchModel],
     len: usize,

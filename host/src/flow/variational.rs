@@ -22,6 +22,7 @@
 
 use super::pool::Pool;
 use crate::par::*;
+use wide::f32x4;
 
 /// Settings of the refinement.
 #[derive(Debug, Clone, Copy)]
@@ -51,21 +52,23 @@ pub(crate) struct RefineInput<'a> {
 
 /// The second image and its gradients interleaved per pixel as `[I1, ∂I1/∂x, ∂I1/∂y, 0]`
 /// (one bilinear tap reads all three), row-major with the last column and row repeated
-/// once so that a tap at the last pixel stays inside.
+/// once so that a tap at the last pixel stays inside. The values live in a flat buffer of
+/// the level's [`Pool`] (four per pixel); [`Warpable::recycle`] gives it back.
 #[derive(Debug, Clone)]
 pub(crate) struct Warpable {
     stride: usize,
-    data: Vec<[f32; 4]>,
+    data: Vec<f32>,
 }
 
 impl Warpable {
     /// Interleaves `i1`, `gx` and `gy` (each `w x h`, `w, h >= 1`).
-    pub fn new(i1: &[f32], gx: &[f32], gy: &[f32], w: usize, h: usize) -> Self {
+    pub fn new(i1: &[f32], gx: &[f32], gy: &[f32], (w, h): (usize, usize), pool: &Pool) -> Self {
         let stride = w + 1;
-        let mut data = vec![[0.0f32; 4]; stride * (h + 1)];
-        data.par_chunks_mut(stride)
+        let mut data = pool.scratch(4 * stride * (h + 1));
+        data.par_chunks_mut(4 * stride)
             .enumerate()
             .for_each(|(yy, out)| {
+                let out = out.as_chunks_mut::<4>().0;
                 let y = yy.min(h - 1) * w;
                 let (a, b, c) = (&i1[y..][..w], &gx[y..][..w], &gy[y..][..w]);
                 for (((o, &a), &b), &c) in out.iter_mut().zip(a).zip(b).zip(c) {
@@ -74,6 +77,16 @@ impl Warpable {
                 out[w] = out[w - 1];
             });
         Self { stride, data }
+    }
+
+    /// Gives the buffer back to `pool`.
+    pub fn recycle(self, pool: &Pool) {
+        pool.put(self.data);
+    }
+
+    /// The interleaved pixels.
+    fn pixels(&self) -> &[[f32; 4]] {
+        self.data.as_chunks::<4>().0
     }
 }
 
@@ -116,11 +129,22 @@ struct Planes {
 }
 
 impl Planes {
+    /// Zeroed planes (guard rows and slots included).
     fn new(sp: &Split, n: usize, pool: &Pool) -> Self {
         Self {
             ps: sp.ps,
             n,
             data: pool.zeroed(sp.ps * n * (sp.h + 2)),
+        }
+    }
+
+    /// Planes of no particular content, for values written at every pixel before they are
+    /// read and never read at a guard.
+    fn scratch(sp: &Split, n: usize, pool: &Pool) -> Self {
+        Self {
+            ps: sp.ps,
+            n,
+            data: pool.scratch(sp.ps * n * (sp.h + 2)),
         }
     }
 
@@ -154,12 +178,13 @@ pub(crate) fn refine(
     let sp = Split::new(inp.w, inp.h);
     // Per colour: flow (u, v), warped derivatives (ix, iy, iz), increment (du, dv),
     // smoothness weights to the right and lower neighbour (wr, wd), and the frozen system
-    // (a12, 1/a11, 1/a22, b1, b2).
+    // (a12, 1/a11, 1/a22, b1, b2). Neighbour reads reach the guards of the flow, increment
+    // and weight planes, so those start zeroed; the others are only read where written.
     let mut uv = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
-    let mut deriv = [Planes::new(&sp, 3, pool), Planes::new(&sp, 3, pool)];
+    let mut deriv = [Planes::scratch(&sp, 3, pool), Planes::scratch(&sp, 3, pool)];
     let mut duv = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
     let mut wts = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
-    let mut sys = [Planes::new(&sp, 5, pool), Planes::new(&sp, 5, pool)];
+    let mut sys = [Planes::scratch(&sp, 5, pool), Planes::scratch(&sp, 5, pool)];
     for (c, uvc) in uv.iter_mut().enumerate() {
         scatter(&sp, c, flow, uvc);
     }
@@ -220,8 +245,8 @@ fn warp(
 ) {
     let ps = sp.ps;
     let (wmax, hmax) = ((sp.w - 1) as f32, (sp.h - 1) as f32);
-    let src = inp.second;
-    let stride = src.stride;
+    let src = inp.second.pixels();
+    let stride = inp.second.stride;
     uv.rows_mut(sp.h)
         .zip(duv.rows_mut(sp.h))
         .zip(deriv.rows_mut(sp.h))
@@ -252,13 +277,13 @@ fn warp(
                     let (ix, iy) = (xw as i32, yw as i32);
                     let (ax, ay) = (xw - ix as f32, yw - iy as f32);
                     let at = iy.unsigned_abs() as usize * stride + ix.unsigned_abs() as usize;
-                    if let Some(q) = src.data.get(at..at + stride + 2) {
-                        let lerp = |p: [f32; 4], q: [f32; 4], t: f32| -> [f32; 4] {
-                            core::array::from_fn(|i| p[i] + t * (q[i] - p[i]))
-                        };
-                        let top = lerp(q[0], q[1], ax);
-                        let bottom = lerp(q[stride], q[stride + 1], ax);
-                        let v = lerp(top, bottom, ay);
+                    if let Some(q) = src.get(at..at + stride + 2) {
+                        // All four channels at once, each as `p + t·(q − p)`.
+                        let lerp = |p: f32x4, q: f32x4, t: f32| p + f32x4::splat(t) * (q - p);
+                        let at = |i: usize| f32x4::new(q[i]);
+                        let top = lerp(at(0), at(1), ax);
+                        let bottom = lerp(at(stride), at(stride + 1), ax);
+                        let v = lerp(top, bottom, ay).to_array();
                         d = [0.5 * (v[1] + gx0[x]), 0.5 * (v[2] + gy0[x]), v[0] - i0[x]];
                     }
                 }
@@ -515,7 +540,7 @@ mod tests {
         let flat = vec![7.0f32; w * h];
         let zero = vec![0.0f32; w * h];
         let pool = Pool::default();
-        let second = Warpable::new(&flat, &zero, &zero, w, h);
+        let second = Warpable::new(&flat, &zero, &zero, (w, h), &pool);
         let inp = RefineInput {
             w,
             h,

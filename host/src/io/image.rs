@@ -22,14 +22,14 @@
 
 use std::{
     borrow::Cow,
-    io::{self, Cursor},
+    io::{self, Cursor, Write as _},
     path::{Path, PathBuf},
 };
 
 use riseg_core::ImageView;
 
 use super::files::{DiskFiles, Files};
-use super::write_atomic;
+use super::{write_atomic, write_atomic_with};
 
 use image::{
     DynamicImage, ExtendedColorType, ImageDecoder as _, ImageEncoder,
@@ -302,9 +302,41 @@ fn png_size(path: &Path, bytes: &[u8]) -> Result<(usize, usize), ImageIoError> {
     Ok((width as usize, height as usize))
 }
 
+/// What [`decode_png`] found: an 8-bit RGB PNG decoded straight into its pixel buffer, or
+/// any other PNG decoded for conversion.
+enum Decoded {
+    Rgb8(RgbImage),
+    Other(DynamicImage),
+}
+
+impl Decoded {
+    /// The image as 8-bit RGB ([`read_png_as_rgb8`]'s conversion).
+    fn into_rgb8(self, path: &Path) -> Result<RgbImage, ImageIoError> {
+        match self {
+            Self::Rgb8(rgb) => Ok(rgb),
+            Self::Other(other) => {
+                let rgb = other.into_rgb8();
+                let (width, height) = rgb.dimensions();
+                let data = rgb.as_raw().as_chunks::<3>().0.to_vec();
+                from_decoded(path, width, height, data)
+            }
+        }
+    }
+
+    /// The error for a PNG that is not of the `expected` kind.
+    fn wrong_format(&self, path: &Path, expected: &'static str) -> ImageIoError {
+        let found = match self {
+            Self::Rgb8(_) => "8-bit RGB".into(),
+            Self::Other(other) => format_name(other),
+        };
+        ImageIoError::new(path, ImageProblem::WrongFormat { expected, found })
+    }
+}
+
 /// Decodes `path` from `files` after checking the declared size against
-/// [`MAX_IMAGE_PIXELS`] (the decoder's allocation is capped to match).
-fn decode_png(files: &impl Files, path: &Path) -> Result<DynamicImage, ImageIoError> {
+/// [`MAX_IMAGE_PIXELS`] (the decoder's allocation is capped to match). An 8-bit RGB PNG is
+/// decoded straight into the [`RgbImage`] buffer (no second copy).
+fn decode_png(files: &impl Files, path: &Path) -> Result<Decoded, ImageIoError> {
     let bytes = read_bytes(files, path)?;
     let (width, height) = png_size(path, &bytes)?;
     if width.saturating_mul(height) > MAX_IMAGE_PIXELS {
@@ -319,7 +351,18 @@ fn decode_png(files: &impl Files, path: &Path) -> Result<DynamicImage, ImageIoEr
     // 16-bit RGBA, the widest PNG pixel, plus room for the decoder's own rows.
     limits.max_alloc = Some(2 * (MAX_IMAGE_PIXELS as u64) * 8);
     decoder.set_limits(limits).map_err(corrupt)?;
-    DynamicImage::from_decoder(decoder).map_err(corrupt)
+    if decoder.color_type() == image::ColorType::Rgb8 {
+        let mut data = vec![[0u8; 3]; width * height];
+        decoder
+            .read_image(data.as_flattened_mut())
+            .map_err(corrupt)?;
+        let rgb =
+            Image::from_vec(width, height, data).expect("the buffer has width x height pixels");
+        return Ok(Decoded::Rgb8(rgb));
+    }
+    DynamicImage::from_decoder(decoder)
+        .map(Decoded::Other)
+        .map_err(corrupt)
 }
 
 fn format_name(image: &DynamicImage) -> String {
@@ -334,16 +377,6 @@ fn format_name(image: &DynamicImage) -> String {
         DynamicImage::ImageRgba16(_) => "16-bit RGBA".into(),
         other => format!("{:?}", other.color()),
     }
-}
-
-fn wrong_format(path: &Path, expected: &'static str, found: &DynamicImage) -> ImageIoError {
-    ImageIoError::new(
-        path,
-        ImageProblem::WrongFormat {
-            expected,
-            found: format_name(found),
-        },
-    )
 }
 
 /// Reads `path` with `read` (one of this module's readers) and checks that the image is
@@ -409,22 +442,16 @@ pub fn read_rgb8(path: &Path) -> Result<RgbImage, ImageIoError> {
 /// # Errors
 /// As [`read_rgb8`].
 pub fn read_rgb8_in(files: &impl Files, path: &Path) -> Result<RgbImage, ImageIoError> {
-    let decoded = decode_png(files, path)?;
-    let (width, height) = (decoded.width(), decoded.height());
-    let data: Vec<[u8; 3]> = match &decoded {
-        DynamicImage::ImageRgb8(img) => img
-            .as_raw()
-            .chunks_exact(3)
-            .map(|c| [c[0], c[1], c[2]])
-            .collect(),
-        DynamicImage::ImageRgba8(img) => img
-            .as_raw()
-            .chunks_exact(4)
-            .map(|c| [c[0], c[1], c[2]])
-            .collect(),
-        other => return Err(wrong_format(path, "8-bit RGB PNG", other)),
-    };
-    from_decoded(path, width, height, data)
+    match decode_png(files, path)? {
+        Decoded::Rgb8(rgb) => Ok(rgb),
+        Decoded::Other(DynamicImage::ImageRgba8(img)) => {
+            let (width, height) = img.dimensions();
+            let pixels = img.as_raw().as_chunks::<4>().0;
+            let data = pixels.iter().map(|c| [c[0], c[1], c[2]]).collect();
+            from_decoded(path, width, height, data)
+        }
+        other => Err(other.wrong_format(path, "8-bit RGB PNG")),
+    }
 }
 
 /// Reads a PNG of any colour type and bit depth converted to 8-bit RGB: grey is repeated
@@ -434,14 +461,7 @@ pub fn read_rgb8_in(files: &impl Files, path: &Path) -> Result<RgbImage, ImageIo
 /// # Errors
 /// Missing file, I/O error, or corrupt PNG.
 pub fn read_png_as_rgb8(path: &Path) -> Result<RgbImage, ImageIoError> {
-    let rgb = decode_png(&DiskFiles, path)?.into_rgb8();
-    let (width, height) = rgb.dimensions();
-    let data = rgb
-        .as_raw()
-        .chunks_exact(3)
-        .map(|c| [c[0], c[1], c[2]])
-        .collect();
-    from_decoded(path, width, height, data)
+    decode_png(&DiskFiles, path)?.into_rgb8(path)
 }
 
 /// Reads a 16-bit greyscale PNG (depth, labels). Any other bit depth is an error, so an
@@ -458,13 +478,12 @@ pub fn read_gray16(path: &Path) -> Result<Gray16Image, ImageIoError> {
 /// # Errors
 /// As [`read_gray16`].
 pub fn read_gray16_in(files: &impl Files, path: &Path) -> Result<Gray16Image, ImageIoError> {
-    let decoded = decode_png(files, path)?;
-    match decoded {
-        DynamicImage::ImageLuma16(img) => {
+    match decode_png(files, path)? {
+        Decoded::Other(DynamicImage::ImageLuma16(img)) => {
             let (width, height) = img.dimensions();
             from_decoded(path, width, height, img.into_raw())
         }
-        other => Err(wrong_format(path, "16-bit greyscale PNG", &other)),
+        other => Err(other.wrong_format(path, "16-bit greyscale PNG")),
     }
 }
 
@@ -474,13 +493,12 @@ pub fn read_gray16_in(files: &impl Files, path: &Path) -> Result<Gray16Image, Im
 /// # Errors
 /// Missing file, I/O error, corrupt PNG, or not 8-bit greyscale.
 pub fn read_gray8(path: &Path) -> Result<Gray8Image, ImageIoError> {
-    let decoded = decode_png(&DiskFiles, path)?;
-    match decoded {
-        DynamicImage::ImageLuma8(img) => {
+    match decode_png(&DiskFiles, path)? {
+        Decoded::Other(DynamicImage::ImageLuma8(img)) => {
             let (width, height) = img.dimensions();
             from_decoded(path, width, height, img.into_raw())
         }
-        other => Err(wrong_format(path, "8-bit greyscale PNG", &other)),
+        other => Err(other.wrong_format(path, "8-bit greyscale PNG")),
     }
 }
 
@@ -498,18 +516,17 @@ pub fn read_gray_widened(path: &Path) -> Result<Gray16Image, ImageIoError> {
 /// # Errors
 /// As [`read_gray_widened`].
 pub fn read_gray_widened_in(files: &impl Files, path: &Path) -> Result<Gray16Image, ImageIoError> {
-    let decoded = decode_png(files, path)?;
-    match decoded {
-        DynamicImage::ImageLuma16(img) => {
+    match decode_png(files, path)? {
+        Decoded::Other(DynamicImage::ImageLuma16(img)) => {
             let (width, height) = img.dimensions();
             from_decoded(path, width, height, img.into_raw())
         }
-        DynamicImage::ImageLuma8(img) => {
+        Decoded::Other(DynamicImage::ImageLuma8(img)) => {
             let (width, height) = img.dimensions();
             let data = img.into_raw().into_iter().map(u16::from).collect();
             from_decoded(path, width, height, data)
         }
-        other => Err(wrong_format(path, "8- or 16-bit greyscale PNG", &other)),
+        other => Err(other.wrong_format(path, "8- or 16-bit greyscale PNG")),
     }
 }
 
@@ -633,11 +650,8 @@ pub enum FloFormatError {
     },
 }
 
-/// The `.flo` bytes of `flow`.
-///
-/// # Errors
-/// [`FloFormatError::Unwritable`] if a side is zero or above [`FLO_MAX_SIDE_PX`].
-pub fn encode_flo(flow: &FlowImage) -> Result<Vec<u8>, FloFormatError> {
+/// The `.flo` header of `flow`: magic, width, height.
+fn flo_header(flow: &FlowImage) -> Result<[u8; FLO_HEADER_BYTES], FloFormatError> {
     let side_ok = |s: usize| s > 0 && s <= FLO_MAX_SIDE_PX as usize;
     if !side_ok(flow.width) || !side_ok(flow.height) {
         return Err(FloFormatError::Unwritable {
@@ -645,15 +659,33 @@ pub fn encode_flo(flow: &FlowImage) -> Result<Vec<u8>, FloFormatError> {
             height: flow.height,
         });
     }
-    let mut bytes = Vec::with_capacity(FLO_HEADER_BYTES + flow.data.len() * 8);
-    bytes.extend_from_slice(&FLO_MAGIC.to_le_bytes());
+    let mut header = [0u8; FLO_HEADER_BYTES];
+    header[..4].copy_from_slice(&FLO_MAGIC.to_le_bytes());
     // Both sides are at most FLO_MAX_SIDE_PX, so they fit in i32.
-    bytes.extend_from_slice(&(flow.width as i32).to_le_bytes());
-    bytes.extend_from_slice(&(flow.height as i32).to_le_bytes());
-    for [dx, dy] in &flow.data {
-        bytes.extend_from_slice(&dx.to_le_bytes());
-        bytes.extend_from_slice(&dy.to_le_bytes());
+    header[4..8].copy_from_slice(&(flow.width as i32).to_le_bytes());
+    header[8..12].copy_from_slice(&(flow.height as i32).to_le_bytes());
+    Ok(header)
+}
+
+/// The `.flo` body bytes of `vectors` into `out` (8 bytes per vector).
+fn encode_flo_body(vectors: &[[f32; 2]], out: &mut [u8]) {
+    for (o, [dx, dy]) in out.as_chunks_mut::<8>().0.iter_mut().zip(vectors) {
+        let (x, y) = o.split_at_mut(4);
+        x.copy_from_slice(&dx.to_le_bytes());
+        y.copy_from_slice(&dy.to_le_bytes());
     }
+}
+
+/// The `.flo` bytes of `flow`.
+///
+/// # Errors
+/// [`FloFormatError::Unwritable`] if a side is zero or above [`FLO_MAX_SIDE_PX`].
+pub fn encode_flo(flow: &FlowImage) -> Result<Vec<u8>, FloFormatError> {
+    let header = flo_header(flow)?;
+    let mut bytes = vec![0u8; FLO_HEADER_BYTES + flow.data.len() * 8];
+    let (head, body) = bytes.split_at_mut(FLO_HEADER_BYTES);
+    head.copy_from_slice(&header);
+    encode_flo_body(&flow.data, body);
     Ok(bytes)
 }
 
@@ -741,9 +773,21 @@ pub fn read_flo_in(files: &impl Files, path: &Path) -> Result<FlowImage, ImageIo
 /// # Errors
 /// An image side above [`FLO_MAX_SIDE_PX`] (or zero), or I/O errors, naming `path`.
 pub fn write_flo(path: &Path, flow: &FlowImage) -> Result<(), ImageIoError> {
-    let bytes =
-        encode_flo(flow).map_err(|e| ImageIoError::new(path, ImageProblem::CorruptFlo(e)))?;
-    write_file(path, &bytes)
+    let header =
+        flo_header(flow).map_err(|e| ImageIoError::new(path, ImageProblem::CorruptFlo(e)))?;
+    // Encoded and written a piece at a time: the whole file never sits in memory.
+    const PIECE_VECTORS: usize = 8192;
+    let mut piece = vec![0u8; PIECE_VECTORS * 8];
+    write_atomic_with(path, |file| {
+        file.write_all(&header)?;
+        for vectors in flow.data.chunks(PIECE_VECTORS) {
+            let bytes = &mut piece[..vectors.len() * 8];
+            encode_flo_body(vectors, bytes);
+            file.write_all(bytes)?;
+        }
+        Ok(())
+    })
+    .map_err(|e| ImageIoError::new(path, ImageProblem::Io(e)))
 }
 
 #[cfg(test)]

@@ -36,19 +36,33 @@ pub(crate) fn temp_name(name: &str, kind: &str) -> String {
 /// The I/O error of the step that failed (the folder is missing or not writable, the
 /// disk is full, the path is a folder, ...). Callers add the path to the message.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    write_atomic_with(path, |file| file.write_all(bytes))
+}
+
+/// [`write_atomic`] with the bytes written by `fill`, so that a large file need not be held
+/// whole in memory first. `fill` writes straight to the file (unbuffered: write in large
+/// pieces); everything else, the temporary file, the flush to disk, the rename, what is at
+/// `path` and the errors, is as for [`write_atomic`].
+///
+/// # Errors
+/// As [`write_atomic`], and any error `fill` returns.
+pub fn write_atomic_with(
+    path: &Path,
+    fill: impl FnOnce(&mut fs::File) -> io::Result<()>,
+) -> io::Result<()> {
     let target = follow_links(path)?;
     if let Some(kind) = special_file(&target)? {
         let mut file = match kind {
             Special::Folder => return Err(is_a_folder()),
             Special::Device => fs::OpenOptions::new().write(true).open(&target)?,
         };
-        file.write_all(bytes)?;
+        fill(&mut file)?;
         return file.flush();
     }
     let tmp = temp_beside(&target, "tmp");
     let result = (|| {
         let mut file = fs::File::create(&tmp)?;
-        file.write_all(bytes)?;
+        fill(&mut file)?;
         file.sync_all()?;
         fs::rename(&tmp, &target)
     })();

@@ -467,27 +467,24 @@ fn build_frame(
     let first = samples.partition_point(|s| i64::from(s.px[1]) < oy - reach_px);
     let last = samples.partition_point(|s| i64::from(s.px[1]) <= oy + reach_px);
     let window = samples.get(first..last)?;
-    // `&`, not `&&`: no branches, so the scan below compacts without mispredictions.
     let candidate = |s: &FrameSample| {
         s.tracked
-            & (s.label == o.label)
-            & ((i64::from(s.px[0]) - ox).abs() <= reach_px)
-            & (s.px != o.px)
+            && s.label == o.label
+            && (i64::from(s.px[0]) - ox).abs() <= reach_px
+            && s.px != o.px
     };
     // The window is scanned twice (second and third point); list its candidates once when
     // they fit on the stack, else scan it again.
     let mut listed = [0u32; CANDIDATES_ON_STACK];
     let mut count = 0;
     for (k, s) in window.iter().enumerate() {
-        // Branch-free compaction: every index is written, only candidates advance.
-        if let Some(slot) = listed.get_mut(count.min(CANDIDATES_ON_STACK - 1)) {
-            *slot = k as u32;
+        if candidate(s) {
+            match listed.get_mut(count) {
+                Some(slot) => *slot = k as u32,
+                None => return best_triangle(o, window.iter().filter(|s| candidate(s)), cfg),
+            }
+            count += 1;
         }
-        count += usize::from(candidate(s));
-    }
-    // The last slot takes every write once the list is full: only shorter lists are whole.
-    if count >= CANDIDATES_ON_STACK {
-        return best_triangle(o, window.iter().filter(|s| candidate(s)), cfg);
     }
     let listed = listed.get(..count).unwrap_or(&[]);
     best_triangle(
@@ -497,7 +494,7 @@ fn build_frame(
     )
 }
 
-/// Candidates [`build_frame`] lists on the stack, plus one (4 bytes each).
+/// Most candidates [`build_frame`] lists on the stack (4 bytes each).
 const CANDIDATES_ON_STACK: usize = 256;
 
 /// The frame on origin `o` and the best two of `candidates` (samples of its segment near

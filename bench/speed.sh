@@ -125,7 +125,7 @@ for fam in ("packed", "loose"):
 pair_set = None
 for line in (work / "flow.txt").read_text().splitlines():
     if line.startswith("Dense flow"):
-        pair_set, found = line.split(",")[1].strip(), {}
+        pair_set, found = line.split(",")[2].strip(), {}
     cells = [c.strip() for c in line.strip().strip("|").split("|")]
     if pair_set and len(cells) == 4 and cells[0] in ("riseg-medium", "opencv-dis-medium"):
         found[cells[0]] = (float(cells[1]), float(cells[3]))

@@ -29,6 +29,7 @@ use crate::{
     Config, Error, Twist,
     error::{Buffer, check_len},
     math::{Real, exp},
+    union_find::{find, union},
 };
 
 /// Group id of a frame that belongs to no group.
@@ -221,11 +222,8 @@ pub fn group_frames(
     // Pass 2: density of each frame = its number of links.
     let density = links;
     density.fill(0);
-    let mut start = 0;
-    for i in 0..n {
-        let len = n - i - 1;
-        let (Some(row), Some(later)) = (pair_bin.get(start..start + len), density.get_mut(i + 1..))
-        else {
+    for (i, row) in pair_rows(n, pair_bin) {
+        let Some(later) = density.get_mut(i + 1..) else {
             break;
         };
         let mut own = 0u32;
@@ -237,7 +235,6 @@ pub fn group_frames(
         if let Some(d) = density.get_mut(i) {
             *d += own;
         }
-        start += len;
     }
     // Pass 3 (quick shift): each frame points at its nearest linked frame of higher
     // density; ties in distance go to the denser frame. Only a mode has no such frame.
@@ -280,7 +277,7 @@ pub fn group_frames(
         }
     }
     for (i, root) in attach.iter_mut().enumerate() {
-        *root = find(parent, i);
+        *root = find(parent, i) as u32;
     }
     let count = finish_groups(twists, labels, cfg, attach, density, frame_group, groups)?;
     let split_m = split.map(|b| b as Real * bin_width);
@@ -334,11 +331,11 @@ fn merge_close_groups(
     //    every close pair would let a small static group next to a moving one chain a
     //    moving body into the still rest of its segment.
     let set_of = |parent: &mut [u32], g: usize| {
-        let root = find(parent, g) as usize;
+        let root = find(parent, g);
         let mut frames = 0u32;
         let mut largest = g;
         for (h, b) in groups.iter().enumerate().take(count) {
-            if find(parent, h) as usize == root {
+            if find(parent, h) == root {
                 frames = frames.saturating_add(b.frames);
                 if groups.get(largest).is_none_or(|l| b.frames > l.frames) {
                     largest = h;
@@ -379,7 +376,7 @@ fn merge_close_groups(
     }
     let mut next = 0u32;
     for g in 0..count {
-        let root = find(parent, g) as usize;
+        let root = find(parent, g);
         let id = if root == g {
             next += 1;
             next - 1
@@ -447,42 +444,22 @@ fn bump(counts: &mut [u32], i: usize) {
     }
 }
 
+/// The stored codes of the pairs `(i, j > i)` for each frame `i`, in pass 1's order.
+fn pair_rows(n: usize, pair_bin: &[u8]) -> impl Iterator<Item = (usize, &[u8])> {
+    (0..n).scan(0, move |start, i| {
+        let len = n - i - 1;
+        let row = pair_bin.get(*start..*start + len)?;
+        *start += len;
+        Some((i, row))
+    })
+}
+
 /// Calls `f(i, j, code)` for every pair `i < j` in the order pass 1 stored them.
 fn for_each_pair(n: usize, pair_bin: &[u8], mut f: impl FnMut(usize, usize, u8)) {
-    let mut start = 0;
-    for i in 0..n {
-        let len = n - i - 1;
-        let Some(row) = pair_bin.get(start..start + len) else {
-            return;
-        };
+    for (i, row) in pair_rows(n, pair_bin) {
         for (k, &code) in row.iter().enumerate() {
             f(i, i + 1 + k, code);
         }
-        start += len;
-    }
-}
-
-fn find(parent: &mut [u32], mut i: usize) -> u32 {
-    // Path halving; parents always point to valid indices (they start as i, union keeps them).
-    while let Some(&p) = parent.get(i) {
-        if p as usize == i {
-            break;
-        }
-        let grand = parent.get(p as usize).copied().unwrap_or(p);
-        if let Some(slot) = parent.get_mut(i) {
-            *slot = grand;
-        }
-        i = grand as usize;
-    }
-    i as u32
-}
-
-fn union(parent: &mut [u32], a: usize, b: usize) {
-    let (ra, rb) = (find(parent, a), find(parent, b));
-    // The smaller root wins, so ids do not depend on the order links are seen in.
-    let (keep, drop) = if ra < rb { (ra, rb) } else { (rb, ra) };
-    if let Some(slot) = parent.get_mut(drop as usize) {
-        *slot = keep;
     }
 }
 

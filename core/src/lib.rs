@@ -20,6 +20,7 @@ pub mod rng;
 pub mod se3;
 pub mod split;
 pub mod synth;
+mod union_find;
 // Core's tests use the host's `Vec`-backed workspace, compiled from its one source; the
 // alias lets that file's `riseg_core::` paths resolve here.
 #[cfg(test)]

@@ -55,6 +55,7 @@ use crate::{
     image::valid_depth,
     math::{Real, round},
     se3::fit_rigid_motion,
+    union_find::{find, union},
 };
 
 /// Most segments one step can hold (labels are `u16`, `0` is background).
@@ -271,15 +272,12 @@ pub fn correct_mask(
 
     // 5. Label.
     let (next, split_segments) = label_split_segments(seeds, count)?;
-    let mut last: (u32, &[SegmentSeeds]) = (0, &[]);
+    let mut entries = SegmentEntries::new(seeds);
     for ((out, &seg), &c) in labels_t1.iter_mut().zip(segment.iter()).zip(claim.iter()) {
         *out = seg as u16;
         if c != 0 {
-            if last.0 != seg || last.1.is_empty() {
-                last = (seg, groups_in(seeds, seg));
-            }
             let g = u32::from(c - 1);
-            if let Some(entry) = last.1.iter().find(|s| s.group == g) {
+            if let Some(entry) = entries.of(seg).iter().find(|s| s.group == g) {
                 *out = entry.label as u16;
             }
         }
@@ -524,8 +522,7 @@ fn grow_regions(
         }
         best.1
     };
-    // Pixels are queued segment by segment, so the last segment's entries are cached.
-    let mut last: (u32, &[SegmentSeeds]) = (0, &[]);
+    let mut entries = SegmentEntries::new(seeds);
     while head < tail {
         let Some(&p) = queue.get(head) else { break };
         head += 1;
@@ -533,10 +530,7 @@ fn grow_regions(
         let (Some(&seg), Some(&mine)) = (segment.get(i), claim.get(i)) else {
             continue;
         };
-        if last.0 != seg || last.1.is_empty() {
-            last = (seg, groups_in(seeds, seg));
-        }
-        let candidates = last.1;
+        let candidates = entries.of(seg);
         for (j, pj) in grid.neighbours(p) {
             if segment.get(j) != Some(&seg) || claim.get(j) != Some(&0) {
                 continue;
@@ -688,8 +682,8 @@ fn label_segments(
     if width == 0 || parent.len() < n {
         return Ok(0);
     }
-    // Pass 1: provisional labels (from 1; 0 is background) into `segment`; the parent of
-    // label `l` is `parent[l - 1]`.
+    // Pass 1: provisional labels into `segment`: `l + 1` for union-find element `l` (0 is
+    // background).
     let mut made = 0u32;
     for y in 0..grid.height {
         let row = y * width;
@@ -715,7 +709,7 @@ fn label_segments(
             };
             let label = if left.0 == k {
                 if up != 0 && up != left.1 && up != joined_up {
-                    unite(parent, left.1, up);
+                    union(parent, left.1 as usize - 1, up as usize - 1);
                     joined_up = up;
                 }
                 left.1
@@ -723,10 +717,10 @@ fn label_segments(
                 joined_up = up;
                 up
             } else {
-                made += 1;
-                if let Some(p) = parent.get_mut(made as usize - 1) {
+                if let Some(p) = parent.get_mut(made as usize) {
                     *p = made;
                 }
+                made += 1;
                 joined_up = 0;
                 made
             };
@@ -735,22 +729,19 @@ fn label_segments(
         }
     }
     // Final ids in order of the roots (first pixels in scan order); parents are smaller,
-    // so a parent's slot already holds its final id when a label is reached.
+    // so a parent's slot already holds its final id when an element is reached.
     let mut count = 0usize;
-    for p in 1..=made {
-        let Some(&up) = parent.get(p as usize - 1) else {
+    for p in 0..made as usize {
+        let Some(&up) = parent.get(p) else {
             break;
         };
-        let id = if up == p {
+        let id = if up as usize == p {
             count += 1;
             count as u32
         } else {
-            parent
-                .get((up as usize).wrapping_sub(1))
-                .copied()
-                .unwrap_or(0)
+            parent.get(up as usize).copied().unwrap_or(0)
         };
-        if let Some(slot) = parent.get_mut(p as usize - 1) {
+        if let Some(slot) = parent.get_mut(p) {
             *slot = id;
         }
     }
@@ -773,32 +764,6 @@ fn label_segments(
     }
     join_small_segments(grid, segment, count, min_px, segs);
     Ok(count)
-}
-
-/// Unites the sets of provisional labels `a` and `b` (parent of `l` at `parent[l - 1]`);
-/// the smaller root stays the root.
-fn unite(parent: &mut [u32], a: u32, b: u32) {
-    let root = |parent: &mut [u32], mut l: u32| {
-        // Path halving; parents are smaller labels, so this ends.
-        while let Some(&p) = parent.get((l as usize).wrapping_sub(1)) {
-            if p == l {
-                break;
-            }
-            let grand = parent
-                .get((p as usize).wrapping_sub(1))
-                .copied()
-                .unwrap_or(p);
-            if let Some(slot) = parent.get_mut(l as usize - 1) {
-                *slot = grand;
-            }
-            l = grand;
-        }
-        l
-    };
-    let (ra, rb) = (root(parent, a), root(parent, b));
-    if let Some(slot) = parent.get_mut((ra.max(rb) as usize).wrapping_sub(1)) {
-        *slot = ra.min(rb);
-    }
 }
 
 /// Components smaller than `min_px` join their largest neighbouring component, by
@@ -964,20 +929,6 @@ fn merge_same_motion(
     for (i, p) in parent.iter_mut().enumerate() {
         *p = i as u32;
     }
-    let root = |parent: &mut [u32], mut l: u32| {
-        for _ in 0..parent.len() {
-            let p = parent.get(l as usize).copied().unwrap_or(l);
-            if p == l {
-                break;
-            }
-            let grand = parent.get(p as usize).copied().unwrap_or(p);
-            if let Some(slot) = parent.get_mut(l as usize) {
-                *slot = grand;
-            }
-            l = grand;
-        }
-        l
-    };
     // The output label of a seed entry, and its group if that group moved.
     let moving = |e: &SegmentSeeds| {
         let g = groups.groups.get(e.group as usize).filter(|g| g.moving)?;
@@ -1000,18 +951,14 @@ fn merge_same_motion(
             {
                 continue;
             }
-            let (ra, rb) = (root(parent, la), root(parent, lb));
-            if ra != rb {
-                if let Some(slot) = parent.get_mut(ra.max(rb) as usize) {
-                    *slot = ra.min(rb);
-                }
+            if union(parent, la as usize, lb as usize) {
                 merges += 1;
             }
         }
     }
     if merges > 0 {
         for l in labels.iter_mut() {
-            *l = root(parent, u32::from(*l)) as u16;
+            *l = find(parent, usize::from(*l)) as u16;
         }
     }
     merges
@@ -1095,6 +1042,30 @@ fn collect_seeds(
         }
     }
     kept
+}
+
+/// [`groups_in`] for pixels visited segment by segment: the last segment's entries are
+/// kept, so a run of pixels of one segment searches once.
+struct SegmentEntries<'s> {
+    seeds: &'s [SegmentSeeds],
+    last: Option<(u32, &'s [SegmentSeeds])>,
+}
+
+impl<'s> SegmentEntries<'s> {
+    const fn new(seeds: &'s [SegmentSeeds]) -> Self {
+        Self { seeds, last: None }
+    }
+
+    fn of(&mut self, seg: u32) -> &'s [SegmentSeeds] {
+        match self.last {
+            Some((s, run)) if s == seg => run,
+            _ => {
+                let run = groups_in(self.seeds, seg);
+                self.last = Some((seg, run));
+                run
+            }
+        }
+    }
 }
 
 /// The entries of one segment.

@@ -9,6 +9,7 @@ use crate::{
     Config, Intrinsics, MAX_CLUSTERS,
     image::ImageView,
     math::{Real, round, sqrt},
+    union_find::{find, union},
 };
 
 /// Most pieces one oversized certain region is split into.
@@ -86,36 +87,6 @@ impl Runs<'_> {
         self.at(row_runs, x, y)
             .and_then(|r| self.aux.get(r).copied())
             .unwrap_or(NONE)
-    }
-}
-
-/// Root of run `r`. Parents never exceed their run's index, so the walk ends; it halves
-/// the path as it goes.
-pub(super) fn find_root(parent: &mut [u32], mut r: usize) -> usize {
-    loop {
-        let Some(&p) = parent.get(r) else {
-            return r;
-        };
-        let p = p as usize;
-        if p >= r {
-            return r;
-        }
-        let grand = parent.get(p).copied().unwrap_or(p as u32);
-        if let Some(slot) = parent.get_mut(r) {
-            *slot = grand;
-        }
-        r = p;
-    }
-}
-
-/// Joins the regions of runs `a` and `b`; the smaller root index stays the root.
-pub(super) fn union(parent: &mut [u32], a: usize, b: usize) {
-    let (ra, rb) = (find_root(parent, a), find_root(parent, b));
-    let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
-    if lo != hi
-        && let Some(slot) = parent.get_mut(hi)
-    {
-        *slot = lo as u32;
     }
 }
 
@@ -324,7 +295,7 @@ pub(super) fn certain_clusters(
     // Roots and pixel counts: a run's root index never exceeds its own, so in index
     // order every run's root is final when the run is reached.
     for r in 0..n_runs {
-        let root = find_root(runs.parent, r);
+        let root = find(runs.parent, r);
         if let Some(p) = runs.parent.get_mut(r) {
             *p = root as u32;
         }

@@ -547,7 +547,7 @@ fn runs_label_the_4_connected_certain_regions() {
                 let run = view_runs.at(&row_runs, x, y);
                 assert_eq!(run.is_some(), certain(x, y), "trial {trial} ({x}, {y})");
                 let Some(r) = run else { continue };
-                let root = find_root(runs.parent, r);
+                let root = crate::union_find::find(runs.parent, r);
                 let c = comp[y * w + x];
                 if root_of_comp[c] == usize::MAX {
                     root_of_comp[c] = root;

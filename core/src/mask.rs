@@ -189,6 +189,25 @@ pub fn correct_mask(
     scratch: &mut MaskScratch<'_>,
     labels_t1: &mut [u16],
 ) -> Result<MaskReport, Error> {
+    // Every pixel outside the static foreground's bounding box is background at `t+1`
+    // whatever was carried there, so every per-pixel step works in that window.
+    let window = Grid::of_foreground(static_t1);
+    correct_mask_in(window, input, static_t1, groups, cfg, scratch, labels_t1)
+}
+
+/// [`correct_mask`] working in `grid`, a window of the image that holds every non-zero
+/// pixel of `static_t1`: scratch is indexed by window pixel, and `labels_t1[..m]` holds
+/// window labels until the output is written. (`queue` stays whole: step 2 also indexes
+/// it by static label.)
+fn correct_mask_in(
+    grid: Grid,
+    input: &MotionInput<'_>,
+    static_t1: &ImageView<'_, u16>,
+    groups: &FrameGroups<'_>,
+    cfg: &Config,
+    scratch: &mut MaskScratch<'_>,
+    labels_t1: &mut [u16],
+) -> Result<MaskReport, Error> {
     cfg.check()?;
     let (width, height) = input.size();
     if static_t1.size() != (width, height) || groups.frame_group.len() != groups.frames.len() {
@@ -218,22 +237,25 @@ pub fn correct_mask(
     }
     check_len(Buffer::Seeds, need.seeds, scratch.seeds.len())?;
     check_len(Buffer::Groups, groups.groups.len(), scratch.motions.len())?;
-    let grid = Grid { width, height };
     let labels_t1 = &mut labels_t1[..n];
-    let source = &mut scratch.source[..n];
-    let segment = &mut scratch.segment[..n];
+    if grid.x0 + grid.width > width || grid.y0 + grid.height > height {
+        return Err(Error::SizeMismatch);
+    }
+    let m = grid.width * grid.height;
+    let source = &mut scratch.source[..m];
+    let segment = &mut scratch.segment[..m];
     let queue = &mut scratch.queue[..n];
-    let claim = &mut scratch.claim[..n];
+    let claim = &mut scratch.claim[..m];
     let mut segs = Segments {
         size: &mut *scratch.segment_size,
         target: &mut *scratch.segment_target,
         key: &mut *scratch.segment_key,
     };
 
-    let key = &mut scratch.key[..n];
+    let key = &mut scratch.key[..m];
 
     // 1. Carry: labels_t1 temporarily holds the carried labels.
-    splat(input, key, source, labels_t1);
+    splat(input, grid, key, source, &mut labels_t1[..m]);
 
     // 2. Intersect.
     let count = intersect(
@@ -273,7 +295,12 @@ pub fn correct_mask(
     // 5. Label.
     let (next, split_segments) = label_split_segments(seeds, count)?;
     let mut entries = SegmentEntries::new(seeds);
-    for ((out, &seg), &c) in labels_t1.iter_mut().zip(segment.iter()).zip(claim.iter()) {
+    let window_labels = &mut labels_t1[..m];
+    for ((out, &seg), &c) in window_labels
+        .iter_mut()
+        .zip(segment.iter())
+        .zip(claim.iter())
+    {
         *out = seg as u16;
         if c != 0 {
             let g = u32::from(c - 1);
@@ -285,8 +312,8 @@ pub fn correct_mask(
     // The static label of each segment (segments never span two static segments: step 2
     // keys by the static label and absorbs fragments only within their static segment).
     for (seg_row, static_row) in segment
-        .chunks(width)
-        .zip((0..height).map(|y| static_t1.row(y).unwrap_or(&[])))
+        .chunks(grid.width.max(1))
+        .zip((0..grid.height).map(|y| grid.static_row(static_t1, y)))
     {
         for (&seg, &st) in seg_row.iter().zip(static_row) {
             if let Some(slot) = segs.key.get_mut(seg as usize) {
@@ -294,16 +321,30 @@ pub fn correct_mask(
             }
         }
     }
-    let merged_segments =
-        merge_same_motion(seeds, groups, segs.key, cfg, next, segs.target, labels_t1);
-    for (k, &l) in key.iter_mut().zip(labels_t1.iter()) {
+    let merged_segments = merge_same_motion(
+        seeds,
+        groups,
+        segs.key,
+        cfg,
+        next,
+        segs.target,
+        window_labels,
+    );
+    for (k, &l) in key.iter_mut().zip(window_labels.iter()) {
         *k = u32::from(l);
     }
     label_segments(grid, key, cfg.min_segment_px, segment, queue, &mut segs)?;
     let mut max_label = 0;
-    for (out, &seg) in labels_t1.iter_mut().zip(segment.iter()) {
-        *out = seg as u16;
-        max_label = max_label.max(*out);
+    labels_t1.fill(0);
+    for (y, seg_row) in segment.chunks(grid.width.max(1)).enumerate() {
+        let start = (grid.y0 + y) * width + grid.x0;
+        let Some(out_row) = labels_t1.get_mut(start..start + grid.width) else {
+            break;
+        };
+        for (out, &seg) in out_row.iter_mut().zip(seg_row) {
+            *out = seg as u16;
+            max_label = max_label.max(*out);
+        }
     }
     Ok(MaskReport {
         segments: count,
@@ -315,13 +356,68 @@ pub fn correct_mask(
 
 #[derive(Debug, Clone, Copy)]
 struct Grid {
+    /// Image column of the window's first column.
+    x0: usize,
+    /// Image row of the window's first row.
+    y0: usize,
     width: usize,
     height: usize,
 }
 
+/// The window CorrectMask works in (see [`correct_mask`]): indices and packed pixels are
+/// window coordinates; [`Grid::locate`] takes image coordinates.
+///
 /// Pixels travel through queues and the source map as packed `x | y << 16` (no division
 /// per pixel to recover the column); hence the 65 535 px limit on each side.
 impl Grid {
+    /// The bounding box of the non-zero pixels of `labels` (empty when there are none).
+    fn of_foreground(labels: &ImageView<'_, u16>) -> Self {
+        let (width, height) = labels.size();
+        let (mut x0, mut x1, mut y0, mut y1) = (width, 0, height, 0);
+        for y in 0..height {
+            let Some(row) = labels.row(y) else {
+                break;
+            };
+            // Whole-row test first: it vectorises, and most rows are background.
+            if row.iter().fold(0, |any, &l| any | l) == 0 {
+                continue;
+            }
+            let first = row.iter().position(|&l| l != 0).unwrap_or(0);
+            let last = row.iter().rposition(|&l| l != 0).unwrap_or(0);
+            x0 = x0.min(first);
+            x1 = x1.max(last + 1);
+            y0 = y0.min(y);
+            y1 = y + 1;
+        }
+        if y1 == 0 {
+            return Self::whole(0, 0);
+        }
+        Self {
+            x0,
+            y0,
+            width: x1 - x0,
+            height: y1 - y0,
+        }
+    }
+
+    /// The window of a whole `width × height` image.
+    const fn whole(width: usize, height: usize) -> Self {
+        Self {
+            x0: 0,
+            y0: 0,
+            width,
+            height,
+        }
+    }
+
+    /// Window row `y` of `image` (empty if out of range).
+    fn static_row<'v>(&self, image: &ImageView<'v, u16>, y: usize) -> &'v [u16] {
+        image
+            .row(self.y0 + y)
+            .and_then(|row| row.get(self.x0..self.x0 + self.width))
+            .unwrap_or(&[])
+    }
+
     const fn pack(x: usize, y: usize) -> u32 {
         (x as u32) | ((y as u32) << 16)
     }
@@ -335,9 +431,13 @@ impl Grid {
         y * self.width + x
     }
 
-    /// The pixel nearest `px`: `(index, packed)`, if inside the image.
+    /// The window pixel nearest image point `px`: `(index, packed)`, if inside the window.
     fn locate(&self, px: [Real; 2]) -> Option<(usize, u32)> {
-        let (u, v) = (round(px[0]), round(px[1]));
+        // Exact: both terms are integers far below 2^24.
+        let (u, v) = (
+            round(px[0]) - self.x0 as Real,
+            round(px[1]) - self.y0 as Real,
+        );
         let inside = u >= 0.0 && v >= 0.0 && u < self.width as Real && v < self.height as Real;
         inside.then(|| {
             let (x, y) = (u as usize, v as usize);
@@ -408,11 +508,11 @@ fn intersect(
     segs: &mut Segments<'_>,
 ) -> Result<usize, Error> {
     for (y, (keys, carried)) in key
-        .chunks_mut(grid.width)
-        .zip(carried.chunks(grid.width))
+        .chunks_mut(grid.width.max(1))
+        .zip(carried.chunks(grid.width.max(1)))
         .enumerate()
     {
-        let statics = static_t1.row(y).unwrap_or(&[]);
+        let statics = grid.static_row(static_t1, y);
         for ((k, &c), &s) in keys.iter_mut().zip(carried).zip(statics) {
             *k = if s == 0 {
                 0
@@ -616,13 +716,23 @@ struct Segments<'a> {
     key: &'a mut [u32],
 }
 
-/// Forward splat. `depth_bits` holds the winning depth's `f32` bits: for positive floats
-/// the bit patterns order like the values, so `u32` comparison is depth comparison.
-fn splat(input: &MotionInput<'_>, depth_bits: &mut [u32], source: &mut [u32], carried: &mut [u16]) {
+/// Forward splat into the window `grid` (targets outside it are never read).
+/// `depth_bits` holds the winning depth's `f32` bits: for positive floats the bit patterns
+/// order like the values, so `u32` comparison is depth comparison.
+fn splat(
+    input: &MotionInput<'_>,
+    grid: Grid,
+    depth_bits: &mut [u32],
+    source: &mut [u32],
+    carried: &mut [u16],
+) {
     let (width, height) = input.size();
     depth_bits.fill(u32::MAX);
     source.fill(NONE);
     carried.fill(0);
+    if grid.width == 0 {
+        return;
+    }
     for y in 0..height {
         let (Some(labels), Some(depths), Some(flows)) = (
             input.labels_t.row(y),
@@ -642,7 +752,17 @@ fn splat(input: &MotionInput<'_>, depth_bits: &mut [u32], source: &mut [u32], ca
             if !(u >= 0.0 && v >= 0.0 && u < width as Real && v < height as Real) {
                 continue;
             }
-            let i = v as usize * width + u as usize;
+            let (Some(wx), Some(wy)) = (
+                (u as usize)
+                    .checked_sub(grid.x0)
+                    .filter(|&wx| wx < grid.width),
+                (v as usize)
+                    .checked_sub(grid.y0)
+                    .filter(|&wy| wy < grid.height),
+            ) else {
+                continue;
+            };
+            let i = wy * grid.width + wx;
             if let (Some(d), Some(s), Some(c)) =
                 (depth_bits.get_mut(i), source.get_mut(i), carried.get_mut(i))
                 && z.to_bits() < *d
@@ -1098,10 +1218,7 @@ mod tests {
         min_px: u32,
     ) -> (usize, Vec<u32>) {
         let n = carried.len();
-        let grid = Grid {
-            width,
-            height: n / width,
-        };
+        let grid = Grid::whole(width, n / width);
         let (mut key, mut segment, mut queue) = (vec![0u32; n], vec![0u32; n], vec![0u32; n]);
         let (mut size, mut target, mut seg_key) = (
             vec![0u32; MAX_SEGMENTS + 1],
@@ -1274,10 +1391,7 @@ mod tests {
         let source: [u32; 8] = core::array::from_fn(|x| Grid::pack(x, 0));
         let (mut key, mut claim, mut queue) = ([0u32; 8], [0u16; 8], [0u32; 8]);
         grow_regions(
-            Grid {
-                width: w,
-                height: h,
-            },
+            Grid::whole(w, h),
             &input,
             &Config::PAPER,
             &groups,
@@ -1410,11 +1524,138 @@ mod tests {
                 (vec![0u32; MAX_SEGMENTS + 1], vec![0u32; MAX_SEGMENTS + 1], vec![0u32; MAX_SEGMENTS + 1]);
             let mut segs = Segments { size: &mut size, target: &mut target, key: &mut seg_key };
             let count =
-                label_segments(Grid { width, height }, key, min_px, &mut segment, &mut queue, &mut segs)
+                label_segments(Grid::whole(width, height), key, min_px, &mut segment, &mut queue, &mut segs)
                     .unwrap();
             let (expected_count, expected) = flood_fill_reference(width, key, min_px);
             proptest::prop_assert_eq!(count, expected_count);
             proptest::prop_assert_eq!(&segment, &expected);
+        }
+    }
+
+    /// Scratch of [`MaskScratchLen`] for one call.
+    struct ScratchBuf {
+        key: Vec<u32>,
+        source: Vec<u32>,
+        segment: Vec<u32>,
+        queue: Vec<u32>,
+        claim: Vec<u16>,
+        size: Vec<u32>,
+        target: Vec<u32>,
+        seg_key: Vec<u32>,
+        seeds: Vec<SegmentSeeds>,
+        motions: Vec<Pose>,
+    }
+
+    impl ScratchBuf {
+        fn new(len: MaskScratchLen) -> Self {
+            // Garbage, not zeros: correct_mask must not rely on what scratch holds.
+            let px = |fill: u32| vec![fill; len.pixels];
+            Self {
+                key: px(7),
+                source: px(9),
+                segment: px(3),
+                queue: px(5),
+                claim: vec![2; len.pixels],
+                size: vec![1; len.segments],
+                target: vec![4; len.segments],
+                seg_key: vec![6; len.segments],
+                seeds: vec![SegmentSeeds::default(); len.seeds],
+                motions: vec![Pose::identity(); len.motions],
+            }
+        }
+
+        fn view(&mut self) -> MaskScratch<'_> {
+            MaskScratch {
+                key: &mut self.key,
+                source: &mut self.source,
+                segment: &mut self.segment,
+                queue: &mut self.queue,
+                claim: &mut self.claim,
+                segment_size: &mut self.size,
+                segment_target: &mut self.target,
+                segment_key: &mut self.seg_key,
+                seeds: &mut self.seeds,
+                motions: &mut self.motions,
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// CorrectMask in the static foreground's window gives exactly what it gives over
+        /// the whole image: random blocks of labels placed anywhere in the image, random
+        /// flow (some of it carrying labels out of or into the window), frames seeding
+        /// from inside and outside the window, moving and still groups.
+        #[test]
+        fn the_foreground_window_changes_nothing(seed in proptest::prelude::any::<u64>()) {
+            use crate::{Intrinsics, Twist, group::GroupInfo, rng::Pcg32};
+            let mut rng = Pcg32::new(seed);
+            let (w, h) = (8 + rng.below(40) as usize, 6 + rng.below(30) as usize);
+            // A block of objects somewhere in the image, each with a 2x2-pixel grain.
+            let (bx, by) = (rng.below(w as u32 / 2) as usize, rng.below(h as u32 / 2) as usize);
+            let (bw, bh) = (1 + rng.below((w - bx) as u32) as usize, 1 + rng.below((h - by) as u32) as usize);
+            let block = |rng: &mut Pcg32, objects: u32| -> Vec<u16> {
+                (0..w * h)
+                    .map(|i| {
+                        let (x, y) = (i % w, i / w);
+                        let inside = (bx..bx + bw).contains(&x) && (by..by + bh).contains(&y);
+                        if inside && rng.below(8) != 0 { (1 + (x / 3 + y / 2) as u32 % objects) as u16 } else { 0 }
+                    })
+                    .collect()
+            };
+            let objects_t = 1 + rng.below(3);
+            let labels_t = block(&mut rng, objects_t);
+            let objects_t1 = 1 + rng.below(2);
+            let static_t1 = block(&mut rng, objects_t1);
+            let depth: Vec<f32> = (0..w * h)
+                .map(|_| if rng.below(10) == 0 { 0.0 } else { 0.55 + 0.1 * rng.unit() })
+                .collect();
+            let flow: Vec<[f32; 2]> = (0..w * h)
+                .map(|_| [4.0 * rng.unit() - 2.0, 4.0 * rng.unit() - 2.0])
+                .collect();
+            let input = MotionInput::new(
+                ImageView::packed(w, h, &labels_t).unwrap(),
+                ImageView::packed(w, h, &depth).unwrap(),
+                ImageView::packed(w, h, &depth).unwrap(),
+                ImageView::packed(w, h, &flow).unwrap(),
+                Intrinsics::new(60.0, 60.0, w as Real / 2.0, h as Real / 2.0).unwrap(),
+            )
+            .unwrap();
+            let motions = [
+                Pose::from_parts(Translation3::new(0.004, 0.0, 0.0), nalgebra::UnitQuaternion::identity()),
+                Pose::from_parts(Translation3::new(0.0, -0.004, 0.001), nalgebra::UnitQuaternion::identity()),
+                Pose::identity(),
+            ];
+            let frames: Vec<BodyFrame> = (0..3 + rng.below(30))
+                .map(|_| {
+                    let px_t1 = core::array::from_fn(|_| {
+                        [rng.unit() * (w + 4) as Real - 2.0, rng.unit() * (h + 4) as Real - 2.0]
+                    });
+                    let p_t: [Point3<Real>; 3] = core::array::from_fn(|_| {
+                        Point3::new(0.05 * rng.unit(), 0.05 * rng.unit(), 0.6)
+                    });
+                    let m = motions[rng.below(3) as usize];
+                    BodyFrame { px_t1, p_t, p_t1: p_t.map(|p| m * p), ..BodyFrame::EMPTY }
+                })
+                .collect();
+            let frame_group: Vec<u16> = frames.iter().map(|_| rng.below(3) as u16).collect();
+            let info = |moving| GroupInfo { frames: 1, twist: Twist::ZERO, moving, label: 1 };
+            let infos = [info(true), info(true), info(false)];
+            let groups = FrameGroups {
+                frames: &frames,
+                frame_group: &frame_group,
+                groups: &infos,
+                space_origin: Point3::new(0.0, 0.0, 0.6),
+            };
+            let cfg = Config { min_segment_px: rng.below(4), min_group_frames: 1, ..Config::PAPER };
+            let static_view = ImageView::packed(w, h, &static_t1).unwrap();
+            let len = MaskScratchLen::new(w, h, frames.len());
+            let (mut windowed, mut whole) = (vec![1u16; w * h], vec![2u16; w * h]);
+            let a = correct_mask(&input, &static_view, &groups, &cfg, &mut ScratchBuf::new(len).view(), &mut windowed);
+            let b = correct_mask_in(
+                Grid::whole(w, h), &input, &static_view, &groups, &cfg, &mut ScratchBuf::new(len).view(), &mut whole,
+            );
+            proptest::prop_assert_eq!(a, b);
+            proptest::prop_assert_eq!(windowed, whole);
         }
     }
 }

@@ -46,9 +46,10 @@
 //! (with gaps where small fragments merged away); background is `0`.
 
 use nalgebra::{Point3, Translation3};
+use wide::f32x4;
 
 use crate::{
-    Config, Error, ImageView, Pose,
+    Config, Error, ImageView, Intrinsics, Pose,
     error::{Buffer, check_len},
     frames::{BodyFrame, MotionInput},
     group::GroupInfo,
@@ -589,7 +590,8 @@ fn grow_regions(
     key.fill(UNSEEN);
     let k = input.intrinsics;
     let (inv_fx, inv_fy) = (1.0 / k.fx, 1.0 / k.fy);
-    let explain = |j: usize, candidates: &[SegmentSeeds]| -> u32 {
+    let tol2 = cfg.grow_tol_px * cfg.grow_tol_px;
+    let explain = |j: usize, lanes: &mut SegmentLanes<'_>| -> u32 {
         let Some(s) = source.get(j).copied().filter(|&s| s != NONE) else {
             return HOLE;
         };
@@ -601,28 +603,21 @@ fn grow_regions(
             return HOLE;
         };
         let (u, v) = (sx as Real, sy as Real);
-        let p = Point3::new((u - k.cx) * z * inv_fx, (v - k.cy) * z * inv_fy, z);
-        let (ox, oy) = (u + dx, v + dy);
-        let mut best = (cfg.grow_tol_px * cfg.grow_tol_px, 0);
-        for &SegmentSeeds { group: g, .. } in candidates {
-            let Some(m) = motions.get(g as usize) else {
-                continue;
-            };
-            let q = m * p;
-            if q.z <= 1e-6 {
-                continue;
+        let p = [(u - k.cx) * z * inv_fx, (v - k.cy) * z * inv_fy, z];
+        let observed = [u + dx, v + dy];
+        // The first candidate with the smallest residual within tolerance.
+        let mut best = (tol2, 0);
+        lanes.for_each_chunk(|chunk| {
+            let (r2, z) = chunk.residuals2(p, &k, observed);
+            for l in 0..chunk.len.min(LANES) {
+                if z[l] > 1e-6 && r2[l] <= best.0 {
+                    best = (r2[l], chunk.claim[l]);
+                }
             }
-            let inv_z = 1.0 / q.z;
-            let ex = k.fx * q.x * inv_z + k.cx - ox;
-            let ey = k.fy * q.y * inv_z + k.cy - oy;
-            let r2 = ex * ex + ey * ey;
-            if r2 <= best.0 {
-                best = (r2, g + 1);
-            }
-        }
+        });
         best.1
     };
-    let mut entries = SegmentEntries::new(seeds);
+    let mut lanes = SegmentLanes::new(seeds, motions);
     while head < tail {
         let Some(&p) = queue.get(head) else { break };
         head += 1;
@@ -630,14 +625,14 @@ fn grow_regions(
         let (Some(&seg), Some(&mine)) = (segment.get(i), claim.get(i)) else {
             continue;
         };
-        let candidates = entries.of(seg);
+        lanes.select(seg);
         for (j, pj) in grid.neighbours(p) {
             if segment.get(j) != Some(&seg) || claim.get(j) != Some(&0) {
                 continue;
             }
             let decision = match key.get(j).copied() {
                 Some(UNSEEN) => {
-                    let d = explain(j, candidates);
+                    let d = explain(j, &mut lanes);
                     if let Some(slot) = key.get_mut(j) {
                         *slot = d;
                     }
@@ -652,6 +647,145 @@ fn grow_regions(
                 *c = mine;
                 *q = pj;
                 tail += 1;
+            }
+        }
+    }
+}
+
+/// Candidate motions tested side by side, one SIMD register wide.
+const LANES: usize = 4;
+
+/// Chunks of one segment's candidate motions kept ready; a segment with more candidates
+/// than `LANES ×` this loads the rest again for every pixel (same result, only slower).
+const CACHED_CHUNKS: usize = 8;
+
+/// Up to [`LANES`] candidate motions as structure-of-arrays, so that one pixel is tested
+/// against all of them at once.
+#[derive(Debug, Clone, Copy)]
+struct MotionChunk {
+    /// Rotation quaternion `(i, j, k, w)`.
+    rot: [f32x4; 4],
+    /// Translation, metres.
+    trans: [f32x4; 3],
+    /// `group + 1` of each lane (the claim growth writes).
+    claim: [u32; LANES],
+    /// Lanes in use, in candidate order.
+    len: usize,
+}
+
+impl MotionChunk {
+    const EMPTY: Self = Self {
+        rot: [f32x4::ZERO; 4],
+        trans: [f32x4::ZERO; 3],
+        claim: [0; LANES],
+        len: 0,
+    };
+
+    /// The motions of `candidates` (up to [`LANES`] seed entries of one segment).
+    fn load(candidates: &[SegmentSeeds], motions: &[Pose]) -> Self {
+        let mut rot = [[0.0; LANES]; 4];
+        let mut trans = [[0.0; LANES]; 3];
+        let mut claim = [0; LANES];
+        let mut len = 0;
+        for entry in candidates {
+            let Some(m) = motions.get(entry.group as usize) else {
+                continue;
+            };
+            let (Some(c), lane) = (claim.get_mut(len), len) else {
+                break;
+            };
+            *c = entry.group + 1;
+            let q = m.rotation.quaternion();
+            let t = m.translation.vector;
+            for (r, v) in rot.iter_mut().zip([q.i, q.j, q.k, q.w]) {
+                if let Some(slot) = r.get_mut(lane) {
+                    *slot = v;
+                }
+            }
+            for (r, v) in trans.iter_mut().zip([t.x, t.y, t.z]) {
+                if let Some(slot) = r.get_mut(lane) {
+                    *slot = v;
+                }
+            }
+            len += 1;
+        }
+        Self {
+            rot: rot.map(f32x4::new),
+            trans: trans.map(f32x4::new),
+            claim,
+            len,
+        }
+    }
+
+    /// Squared reprojection residual, pixels², of camera point `p` moved by each lane's
+    /// motion against the `observed` pixel, and the moved point's depth. Operation for
+    /// operation nalgebra's `Isometry3 * Point3` (rotation `p + w·a + q×a` with
+    /// `a = 2 q×p`, then the translation) and the pinhole projection, so each lane equals
+    /// the scalar computation bit for bit (a test checks).
+    #[inline]
+    fn residuals2(
+        &self,
+        p: [Real; 3],
+        k: &Intrinsics,
+        observed: [Real; 2],
+    ) -> ([Real; LANES], [Real; LANES]) {
+        let [qi, qj, qk, qw] = self.rot;
+        let [tx, ty, tz] = self.trans;
+        let [px, py, pz] = p.map(f32x4::splat);
+        let two = f32x4::splat(2.0);
+        let ax = (qj * pz - qk * py) * two;
+        let ay = (qk * px - qi * pz) * two;
+        let az = (qi * py - qj * px) * two;
+        let x = ax * qw + (qj * az - qk * ay) + px + tx;
+        let y = ay * qw + (qk * ax - qi * az) + py + ty;
+        let z = az * qw + (qi * ay - qj * ax) + pz + tz;
+        let inv_z = f32x4::ONE / z;
+        let ex = f32x4::splat(k.fx) * x * inv_z + f32x4::splat(k.cx) - f32x4::splat(observed[0]);
+        let ey = f32x4::splat(k.fy) * y * inv_z + f32x4::splat(k.cy) - f32x4::splat(observed[1]);
+        ((ex * ex + ey * ey).to_array(), z.to_array())
+    }
+}
+
+/// The candidate motions of the segment growth is in, chunked for [`MotionChunk`]; the
+/// last segment's chunks are kept, since pixels come segment by segment in runs.
+struct SegmentLanes<'s> {
+    entries: SegmentEntries<'s>,
+    motions: &'s [Pose],
+    candidates: &'s [SegmentSeeds],
+    cached: [MotionChunk; CACHED_CHUNKS],
+    segment: Option<u32>,
+}
+
+impl<'s> SegmentLanes<'s> {
+    const fn new(seeds: &'s [SegmentSeeds], motions: &'s [Pose]) -> Self {
+        Self {
+            entries: SegmentEntries::new(seeds),
+            motions,
+            candidates: &[],
+            cached: [MotionChunk::EMPTY; CACHED_CHUNKS],
+            segment: None,
+        }
+    }
+
+    /// Makes `seg`'s candidates the current ones.
+    fn select(&mut self, seg: u32) {
+        if self.segment == Some(seg) {
+            return;
+        }
+        self.segment = Some(seg);
+        self.candidates = self.entries.of(seg);
+        for (slot, chunk) in self.cached.iter_mut().zip(self.candidates.chunks(LANES)) {
+            *slot = MotionChunk::load(chunk, self.motions);
+        }
+    }
+
+    /// Calls `f` on each chunk of the current candidates, in candidate order.
+    #[inline]
+    fn for_each_chunk(&self, mut f: impl FnMut(&MotionChunk)) {
+        for (c, chunk) in self.candidates.chunks(LANES).enumerate() {
+            match self.cached.get(c) {
+                Some(cached) => f(cached),
+                None => f(&MotionChunk::load(chunk, self.motions)),
             }
         }
     }
@@ -1656,6 +1790,45 @@ mod tests {
             );
             proptest::prop_assert_eq!(a, b);
             proptest::prop_assert_eq!(windowed, whole);
+        }
+    }
+
+    proptest::proptest! {
+        /// Growth's four-lane residual equals the scalar computation with nalgebra's
+        /// `Isometry3 * Point3`, bit for bit, so vectorising it changed no mask.
+        #[test]
+        fn motion_lanes_equal_the_scalar_residual_bit_for_bit(seed in proptest::prelude::any::<u64>()) {
+            use crate::{Intrinsics, rng::Pcg32};
+            use nalgebra::{UnitQuaternion, Vector3};
+            let mut rng = Pcg32::new(seed);
+            let mut r = |scale: Real| scale * (2.0 * rng.unit() - 1.0);
+            let motions: Vec<Pose> = (0..LANES + 1)
+                .map(|_| {
+                    let axis = Vector3::new(r(1.0), r(1.0), r(1.0));
+                    Pose::from_parts(
+                        Translation3::new(r(0.05), r(0.05), r(0.05)),
+                        UnitQuaternion::from_scaled_axis(axis * r(0.3)),
+                    )
+                })
+                .collect();
+            let entries: Vec<SegmentSeeds> = (0..LANES as u32)
+                .map(|g| SegmentSeeds { segment: 1, group: g + 1, seeds: 3, label: 1 })
+                .collect();
+            let k = Intrinsics::new(600.0 + r(50.0), 600.0 + r(50.0), 320.0 + r(5.0), 240.0 + r(5.0)).unwrap();
+            let p = [r(0.3), r(0.3), 0.6 + r(0.5)];
+            let observed = [320.0 + r(200.0), 240.0 + r(200.0)];
+            let chunk = MotionChunk::load(&entries, &motions);
+            proptest::prop_assert_eq!(chunk.len, LANES);
+            let (r2, z) = chunk.residuals2(p, &k, observed);
+            for (l, e) in entries.iter().enumerate() {
+                let q = motions[e.group as usize] * Point3::new(p[0], p[1], p[2]);
+                let inv_z = 1.0 / q.z;
+                let ex = k.fx * q.x * inv_z + k.cx - observed[0];
+                let ey = k.fy * q.y * inv_z + k.cy - observed[1];
+                proptest::prop_assert_eq!(z[l].to_bits(), q.z.to_bits());
+                proptest::prop_assert_eq!(r2[l].to_bits(), (ex * ex + ey * ey).to_bits());
+                proptest::prop_assert_eq!(chunk.claim[l], e.group + 1);
+            }
         }
     }
 }

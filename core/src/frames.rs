@@ -467,10 +467,11 @@ fn build_frame(
     let first = samples.partition_point(|s| i64::from(s.px[1]) < oy - reach_px);
     let last = samples.partition_point(|s| i64::from(s.px[1]) <= oy + reach_px);
     let window = samples.get(first..last)?;
+    // The column test first: it is the one that rules most samples of the window out.
     let candidate = |s: &FrameSample| {
-        s.tracked
+        (i64::from(s.px[0]) - ox).abs() <= reach_px
+            && s.tracked
             && s.label == o.label
-            && (i64::from(s.px[0]) - ox).abs() <= reach_px
             && s.px != o.px
     };
     // The window is scanned twice (second and third point); list its candidates once when

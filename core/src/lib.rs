@@ -141,6 +141,15 @@ pub struct Config {
     pub uncertain_max_m: Real,
     /// Push length (paper `d_push`), metres.
     pub push_len_m: Real,
+    /// Which push singles out a still-merged object (beyond the paper), as a fraction of
+    /// the pair's centre spacing: a certain cluster ahead of the pushed one, on the object
+    /// the push crosses, counts as carried when its centre lies off the push's line by
+    /// less than this. Of all pushes of all qualifying pairs, FindAction makes the one
+    /// whose predicted moved set (the pushed cluster and those it carries) splits the
+    /// most pairs of clusters that share a label in the accumulated mask, then the one
+    /// that carries the fewest; with no such split, the paper's choice. `0` turns this
+    /// off (the paper's choice: the first qualifying pair with a push).
+    pub push_carry_frac: Real,
 
     // --- Loop (Algorithm 1) -------------------------------------------------------------
     /// Most pushes the loop makes before it stops.
@@ -181,6 +190,7 @@ impl Config {
         pair_max_m: 0.10,
         uncertain_max_m: 0.03,
         push_len_m: 0.02,
+        push_carry_frac: 0.6,
         max_pushes: 3,
         seed: 0,
     };
@@ -190,7 +200,7 @@ impl Config {
     /// # Errors
     /// [`Error::BadConfig`] naming no field (the enum carries no strings): a length is not
     /// finite and positive, a count is zero, `uncertain_from >= certain_from`, or
-    /// `link_posterior` is outside `(0, 1)`.
+    /// `link_posterior` is outside `(0, 1)`, or `push_carry_frac` is outside `[0, 2]`.
     pub fn check(&self) -> Result<(), Error> {
         let lengths = [
             self.frame_max_side_m,
@@ -216,6 +226,8 @@ impl Config {
             && (0.0..1.0).contains(&self.frame_min_sin)
             && self.merge_twist_m.is_finite()
             && self.merge_twist_m >= 0.0
+            && self.push_carry_frac.is_finite()
+            && (0.0..=2.0).contains(&self.push_carry_frac)
             && self.link_posterior > 0.0
             && self.link_posterior < 1.0
             && self.frame_samples >= 3

@@ -83,6 +83,7 @@ pub fn config(u: &mut Unstructured<'_>) -> Result<Config> {
     c.pair_max_m = near(u, p.pair_max_m)?;
     c.uncertain_max_m = near(u, p.uncertain_max_m)?;
     c.push_len_m = near(u, p.push_len_m)?;
+    c.push_carry_frac = if u.arbitrary()? { 0.0 } else { near(u, p.push_carry_frac)? };
     c.max_pushes = u.arbitrary()?;
     c.seed = u.arbitrary()?;
     Ok(c)

@@ -94,23 +94,43 @@
 //!
 //!    Qualifying pairs are ranked by the distance of their uncertain centre, then by the
 //!    distance between their centres, then by `(i, j)` in index order.
-//! 8. **Which pair and cluster are pushed.** Pairs are tried in rank order. In a pair,
-//!    the cluster with fewer samples is tried first (the smaller region moves more readily
-//!    and disturbs the scene less; ties: the lower index), then the other; the first that
-//!    has a push (step 9) is the pushed cluster `C_i` and the pair is reported with it.
-//!    When no qualifying pair has a push, the best pair is reported without one.
+//! 8. **Which pair and cluster are pushed.** Every pair draws a side from the PRNG (one
+//!    draw per pair, used for both of its clusters). The *candidates* are the pushes of
+//!    step 9 in the paper's order: pairs in rank order; in a pair, the cluster with fewer
+//!    samples first (the smaller region moves more readily and disturbs the scene less;
+//!    ties: the lower index), then the other; for a cluster, the drawn side, then the
+//!    opposite one. With [`Config::push_carry_frac`] `0` the first candidate is made (the
+//!    paper's choice). Otherwise (beyond the paper) FindAction makes the push that
+//!    separates the most objects the accumulated mask still merges:
+//!    - each certain cluster takes the label of `mask` at its pixel centre (`0`, on
+//!      background, joins no label);
+//!    - a candidate's *moved set* is its pushed cluster and every cluster it is predicted
+//!      to carry: the clusters ahead of the pushed one on the push's line, up to where the
+//!      object it crosses ends (the first stretch of more than 5 mm of table), whose pixel
+//!      centres lie off that line by less than `push_carry_frac` times the pair's pixel
+//!      spacing. A box pushed across a row carries nothing; a box pushed along its row
+//!      carries the row;
+//!    - its *score* is the number of pairs of clusters with one label of which one is in
+//!      the moved set and the other not: pairs a push splits. A push that moves a whole
+//!      segment, or only objects already apart, scores `0`.
+//!
+//!    The candidate with the highest score is made, then the one that moves the fewest
+//!    clusters, then the earliest. When no candidate scores above `0` (every object
+//!    already has a label of its own, or the mask is background), the first candidate is
+//!    made, as in the paper. The pushed cluster `C_i` and its pair are reported with the
+//!    push; when no qualifying pair has a push, the best pair is reported without one.
 //! 9. **Push point.** The *region* of certain cluster `q` is the set of certain pixels in
 //!    `q`'s region of step 3 whose nearest pixel centre among that region's clusters is
 //!    `q`. From the pixel centre `C_i` the walk goes in 0.5 px steps along the line
-//!    through `C_i` perpendicular to `C_i → C_j`, on a side drawn from the PRNG (one draw
-//!    per pair tried, used for both of its clusters). Once the walk has been inside
+//!    through `C_i` perpendicular to `C_i → C_j`, on the side of the candidate (step 8).
+//!    Once the walk has been inside
 //!    `C_i`'s region, the first point whose pixel is table is the push start `P`: the
 //!    walk leaves the whole object (or pack of objects) and `P` lies on its outer rim or
 //!    just beyond, never in a cut or a band between two objects, and `P → C_i` is
 //!    perpendicular to the pair (a shear of `C_i` along `C_j`). A side fails when the
 //!    walk reaches the image border, or, after having been in `C_i`'s region, a pixel of
-//!    another cluster's region (that side leads into another object); then the other side
-//!    is tried.
+//!    another cluster's region (that side leads into another object): that side has no
+//!    push.
 //! 10. **Push.** The push starts where the pushed segment of the mask ends on the line
 //!     from `C_i`'s pixel centre to `P`: walking from the centre towards `P` in 0.5 px
 //!     steps while the pixel keeps the centre's label, the last point inside is the start
@@ -127,7 +147,9 @@
 //! `O(samples)` to give samples their regions, `O(samples · 4 · kmeans_iters)` per split
 //! region, `O(samples · K² · kmeans_iters)` for the uncertain k-means (the inner loop
 //! runs over sample planes and vectorises), `O(K² · (K + K_u + line · K))` for the pairs
-//! and `O(width + height)` per walk (up to four per pair tried). At 640×480 with
+//! and `O((width + height) · K)` per walk (four per pair with the push choice of step 8
+//! on, each followed by the walk of its moved set and an `O(K²)` score; up to four per
+//! pair tried with it off). At 640×480 with
 //! [`Config::PAPER`] a call takes about 1 ms on one x86-64 core (SSE2 only); the run
 //! scratch is the largest buffer, `4 · height · ⌈width/2⌉` entries (2.4 MB at 640×480).
 
@@ -477,15 +499,10 @@ pub fn find_action(
         cfg,
     };
     let pairs = rank_pairs(&map, &uncertain, cfg);
-    let mut pair = pairs.first().copied();
-    let mut push = None;
-    for p in &pairs {
-        if let Some((p, found)) = push_for_pair(&map, mask, p, intrinsics, cfg, &mut rng) {
-            pair = Some(p);
-            push = Some(found);
-            break;
-        }
-    }
+    let (pair, push) = match choose_push(&map, mask, &pairs, intrinsics, cfg, &mut rng) {
+        Some((pair, push)) => (Some(pair), Some(push)),
+        None => (pairs.first().copied(), None),
+    };
     Ok(ActionReport {
         certain: regions.clusters,
         uncertain,

@@ -1,8 +1,10 @@
 //! Steps 8-10 of FindAction: the walk out of the pushed cluster and the push itself.
 
+use heapless::Vec as FixedVec;
+
 use super::*;
 use crate::{
-    Config, ImageView, Intrinsics,
+    Config, ImageView, Intrinsics, MAX_CLUSTERS,
     math::{Real, round, sqrt},
     rng::Pcg32,
 };
@@ -78,59 +80,191 @@ fn segment_edge(mask: &ImageView<'_, u16>, target: [Real; 2], rim: [Real; 2]) ->
     inside
 }
 
-/// The push for `pair` (module docs, steps 8-10), with the pair as pushed: the pair's
-/// pushed cluster first, then the other one.
-pub(super) fn push_for_pair(
+/// Most table the line of a push may cross inside the object it pushes, metres (a cut
+/// between two packed objects, or where two rounded objects touch): more ends the object.
+const CARRY_GAP_MAX_M: Real = 0.005;
+
+/// The push of `pushed` (the other cluster of the pair being `other`) that starts on the
+/// side `side_dir` (unit, pixels) of `pushed`'s pixel centre, if a walk that way leaves
+/// the object (module docs, steps 9-10); with the push's unit direction in pixels.
+fn push_from_side(
     map: &RegionMap<'_>,
     mask: &ImageView<'_, u16>,
-    pair: &Pair,
+    pushed: usize,
+    side_dir: [Real; 2],
+    intrinsics: &Intrinsics,
+    cfg: &Config,
+) -> Option<(Push, [Real; 2])> {
+    let ci = map.clusters.get(pushed)?;
+    let rim_px = walk_out(map, pushed, ci.centre_px, side_dir)?;
+    let z_m = ci.centre_cam_m.z;
+    let towards = ci.centre_cam_m - intrinsics.back_project(rim_px[0], rim_px[1], z_m);
+    let norm = towards.norm();
+    if !(norm > 0.0 && norm.is_finite()) {
+        return None;
+    }
+    let direction_cam = towards / norm;
+    if !direction_cam.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let start_px = segment_edge(mask, ci.centre_px, rim_px);
+    let push = Push {
+        start_px,
+        target_px: ci.centre_px,
+        start_cam_m: intrinsics.back_project(start_px[0], start_px[1], z_m),
+        direction_cam,
+        length_m: cfg.push_len_m,
+    };
+    Some((push, [-side_dir[0], -side_dir[1]]))
+}
+
+/// How far the object goes on from `from` along the unit `dir` (pixels): the distance to
+/// the last object pixel before more than `gap_px` of table in a row, or the image border.
+fn reach_px(map: &RegionMap<'_>, from: [Real; 2], dir: [Real; 2], gap_px: Real) -> Real {
+    let (width, height) = map.heatmap.size();
+    // 0.5 px steps over width + height pixels cover the image diagonal.
+    let steps = width
+        .saturating_add(height)
+        .saturating_mul(2)
+        .saturating_add(4);
+    let mut reach = 0.0;
+    for s in 0..steps {
+        let t = s as Real * WALK_STEP_PX;
+        let p = [from[0] + t * dir[0], from[1] + t * dir[1]];
+        match map.at(round(p[0]) as i64, round(p[1]) as i64) {
+            Px::Off => break,
+            Px::Background => {
+                // A NaN gap ends the walk too.
+                if gap_px.is_nan() || t - reach > gap_px {
+                    break;
+                }
+            }
+            Px::Object | Px::Cluster(_) => reach = t,
+        }
+    }
+    reach
+}
+
+/// The clusters a push of `pushed` along the unit `dir` (pixels) is predicted to move, as
+/// a bit set (bit `k` = cluster `k`): `pushed` itself and every cluster ahead of it, up to
+/// where the object it crosses ends, whose centre lies off the push's line by less than
+/// `half_width_px`.
+fn moved_set(
+    map: &RegionMap<'_>,
+    pushed: usize,
+    dir: [Real; 2],
+    half_width_px: Real,
+    gap_px: Real,
+) -> u32 {
+    let Some(ci) = map.clusters.get(pushed) else {
+        return 0;
+    };
+    let reach = reach_px(map, ci.centre_px, dir, gap_px);
+    let mut moved = 0u32;
+    for (k, c) in map.clusters.iter().enumerate().take(32) {
+        let v = [
+            c.centre_px[0] - ci.centre_px[0],
+            c.centre_px[1] - ci.centre_px[1],
+        ];
+        let along = v[0] * dir[0] + v[1] * dir[1];
+        let off = (v[0] * dir[1] - v[1] * dir[0]).abs();
+        if k == pushed || (along > 0.0 && along <= reach && off < half_width_px) {
+            moved |= 1 << k;
+        }
+    }
+    moved
+}
+
+/// Pairs of clusters with one label (not background) in the accumulated mask that the
+/// moved set `moved` splits: one of the two moves, the other stays.
+pub(super) fn splits(labels: &[u16], moved: u32) -> u32 {
+    let mut n = 0;
+    for (a, &la) in labels.iter().enumerate().take(32) {
+        for (b, &lb) in labels.iter().enumerate().take(32).skip(a + 1) {
+            if la != 0 && la == lb && ((moved >> a) ^ (moved >> b)) & 1 == 1 {
+                n += 1;
+            }
+        }
+    }
+    n
+}
+
+/// The push FindAction makes (module docs, steps 8-10), with its pair as pushed (the
+/// pair's pushed cluster first, then the other one). `pairs` are in rank order; each
+/// draws one side from `rng`.
+///
+/// Candidates are enumerated in the paper's order: pairs by rank, in a pair the pushed
+/// cluster then the other, the drawn side then the opposite one. With
+/// [`Config::push_carry_frac`] `0` the first candidate is made. Otherwise every
+/// candidate's moved set is predicted ([`moved_set`]) and the candidate that splits the
+/// most pairs of clusters sharing a label of `mask` is made, then the one that moves the
+/// fewest clusters, then the earliest; when no candidate splits such a pair, the first.
+pub(super) fn choose_push(
+    map: &RegionMap<'_>,
+    mask: &ImageView<'_, u16>,
+    pairs: &[Pair],
     intrinsics: &Intrinsics,
     cfg: &Config,
     rng: &mut Pcg32,
 ) -> Option<(Pair, Push)> {
-    let side: Real = if rng.below(2) == 0 { 1.0 } else { -1.0 };
-    for (pushed, other) in [(pair.pushed, pair.other), (pair.other, pair.pushed)] {
-        let (Some(ci), Some(cj)) = (map.clusters.get(pushed), map.clusters.get(other)) else {
-            continue;
-        };
-        let dx = cj.centre_px[0] - ci.centre_px[0];
-        let dy = cj.centre_px[1] - ci.centre_px[1];
-        let len = sqrt(dx * dx + dy * dy);
-        if len.is_nan() || len <= 1e-3 {
-            continue;
+    let score = cfg.push_carry_frac > 0.0;
+    let mut labels: FixedVec<u16, MAX_CLUSTERS> = FixedVec::new();
+    if score {
+        for c in map.clusters {
+            let label = mask
+                .at(round(c.centre_px[0]) as i64, round(c.centre_px[1]) as i64)
+                .unwrap_or(0);
+            let _ = labels.push(label);
         }
-        let perp = [-dy / len * side, dx / len * side];
-        let Some(rim_px) = walk_out(map, pushed, ci.centre_px, perp)
-            .or_else(|| walk_out(map, pushed, ci.centre_px, [-perp[0], -perp[1]]))
-        else {
-            continue;
-        };
-        let z_m = ci.centre_cam_m.z;
-        let towards = ci.centre_cam_m - intrinsics.back_project(rim_px[0], rim_px[1], z_m);
-        let norm = towards.norm();
-        if !(norm > 0.0 && norm.is_finite()) {
-            continue;
-        }
-        let direction_cam = towards / norm;
-        if !direction_cam.iter().all(|v| v.is_finite()) {
-            continue;
-        }
-        let start_px = segment_edge(mask, ci.centre_px, rim_px);
-        let push = Push {
-            start_px,
-            target_px: ci.centre_px,
-            start_cam_m: intrinsics.back_project(start_px[0], start_px[1], z_m),
-            direction_cam,
-            length_m: cfg.push_len_m,
-        };
-        return Some((
-            Pair {
-                pushed,
-                other,
-                ..*pair
-            },
-            push,
-        ));
     }
-    None
+    // Best so far: (pairs split, clusters moved), the candidate.
+    let mut best: Option<((u32, u32), (Pair, Push))> = None;
+    for pair in pairs {
+        let side: Real = if rng.below(2) == 0 { 1.0 } else { -1.0 };
+        for (pushed, other) in [(pair.pushed, pair.other), (pair.other, pair.pushed)] {
+            let (Some(ci), Some(cj)) = (map.clusters.get(pushed), map.clusters.get(other)) else {
+                continue;
+            };
+            let dx = cj.centre_px[0] - ci.centre_px[0];
+            let dy = cj.centre_px[1] - ci.centre_px[1];
+            let len = sqrt(dx * dx + dy * dy);
+            if len.is_nan() || len <= 1e-3 {
+                continue;
+            }
+            let perp = [-dy / len * side, dx / len * side];
+            for side_dir in [perp, [-perp[0], -perp[1]]] {
+                let Some((push, dir)) =
+                    push_from_side(map, mask, pushed, side_dir, intrinsics, cfg)
+                else {
+                    continue;
+                };
+                let found = (
+                    Pair {
+                        pushed,
+                        other,
+                        ..*pair
+                    },
+                    push,
+                );
+                if !score {
+                    return Some(found);
+                }
+                // Metres per pixel at the cluster's depth.
+                let m_per_px = ci.centre_cam_m.z / intrinsics.fx;
+                let gap_px = CARRY_GAP_MAX_M / m_per_px;
+                let moved = moved_set(map, pushed, dir, cfg.push_carry_frac * len, gap_px);
+                let split = splits(&labels, moved);
+                // With no split, every candidate ties and the first stays.
+                let key = if split > 0 {
+                    (split, u32::MAX - moved.count_ones())
+                } else {
+                    (0, 0)
+                };
+                if best.as_ref().is_none_or(|(b, _)| key > *b) {
+                    best = Some((key, found));
+                }
+            }
+        }
+    }
+    best.map(|(_, found)| found)
 }

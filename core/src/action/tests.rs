@@ -925,3 +925,128 @@ fn the_push_starts_where_the_pushed_segment_of_the_mask_ends() {
         Some(Error::BadImageLayout)
     );
 }
+
+/// Labels of a mask that covers `pack_2x2`'s square: `label(right, bottom)` per quadrant.
+fn pack_2x2_mask(label: impl Fn(bool, bool) -> u16) -> Vec<u16> {
+    let (x0, y0, side) = PACK;
+    let mut mask = vec![0u16; W * H];
+    for y in y0..y0 + side {
+        for x in x0..x0 + side {
+            mask[y * W + x] = label(x >= x0 + side / 2, y >= y0 + side / 2);
+        }
+    }
+    mask
+}
+
+/// Whether each of 16 seeds pushes along x (`[false, ..]`: along y) with this mask.
+fn push_axes(s: &Scene, mask: &[u16], cfg: &Config) -> Vec<bool> {
+    (0..16)
+        .map(|seed| {
+            let cfg = Config { seed, ..*cfg };
+            let report = run_masked(W, H, &s.heat, &s.depth, mask, &intrinsics(), &cfg).unwrap();
+            let push = report.push().expect("push");
+            // Outside the pack, at an outer cell, and along an axis of the grid.
+            let (x0, y0, side) = PACK;
+            let (x, y) = (
+                round(push.start_px[0]) as usize,
+                round(push.start_px[1]) as usize,
+            );
+            assert!(
+                !((x0 + 2..x0 + side - 2).contains(&x) && (y0 + 2..y0 + side - 2).contains(&y)),
+                "seed {seed}: {push:?}"
+            );
+            let d = push.direction_cam;
+            assert!(d.x.abs() > 0.99 || d.y.abs() > 0.99, "seed {seed}: {d:?}");
+            d.x.abs() > 0.99
+        })
+        .collect()
+}
+
+#[test]
+fn a_2x2_pack_split_into_columns_is_pushed_along_the_columns_shared_face() {
+    // The accumulated mask already holds the two columns apart. A push along a column
+    // (y) moves one whole column: nothing new. A push along x from outside the pack moves
+    // one cell of each column (the pushed one and the one it carries): both columns split.
+    let s = pack_2x2();
+    let columns = pack_2x2_mask(|right, _| 1 + u16::from(right));
+    let rows = pack_2x2_mask(|_, bottom| 1 + u16::from(bottom));
+    assert!(push_axes(&s, &columns, &Config::PAPER).iter().all(|&x| x));
+    assert!(push_axes(&s, &rows, &Config::PAPER).iter().all(|&x| !x));
+    // The paper's choice ignores the mask and uses both axes.
+    let paper = Config {
+        push_carry_frac: 0.0,
+        ..Config::PAPER
+    };
+    let axes = push_axes(&s, &columns, &paper);
+    assert!(axes.contains(&true) && axes.contains(&false), "{axes:?}");
+}
+
+/// A 1×3 row of boxes along x (the left one narrower), with a rim and uncertain bands
+/// at the two cuts; the mask gives the left box label 1 and the other two label 2.
+fn row_1x3() -> (Scene, Vec<u16>, [Real; 3]) {
+    let (x0, y0, h) = (60usize, 100usize, 40usize);
+    let cuts = [x0 + 30, x0 + 70];
+    let x1 = x0 + 110;
+    let mut s = Scene::new();
+    s.rect(x0, y0, x1, y0 + h, 100)
+        .rect(x0 + 2, y0 + 2, x1 - 2, y0 + h - 2, 255);
+    for c in cuts {
+        s.rect(c - 5, y0 + 2, c + 6, y0 + h - 2, 130);
+    }
+    let mut mask = vec![0u16; W * H];
+    for y in y0..y0 + h {
+        for x in x0..x1 {
+            mask[y * W + x] = if x < cuts[0] { 1 } else { 2 };
+        }
+    }
+    let centres = [
+        (x0 + cuts[0]) as Real / 2.0,
+        (cuts[0] + cuts[1]) as Real / 2.0,
+        (cuts[1] + x1) as Real / 2.0,
+    ];
+    (s, mask, centres)
+}
+
+#[test]
+fn an_object_already_split_off_is_not_pushed_again() {
+    let (s, mask, centres) = row_1x3();
+    let pushed_x = |cfg: &Config| -> Vec<Real> {
+        (0..16)
+            .map(|seed| {
+                let cfg = Config { seed, ..*cfg };
+                let report =
+                    run_masked(W, H, &s.heat, &s.depth, &mask, &intrinsics(), &cfg).unwrap();
+                assert_eq!(report.certain().len(), 3, "seed {seed}");
+                let push = report.push().expect("push");
+                // Sideways: across the row, so only the pushed box moves.
+                assert!(push.direction_cam.y.abs() > 0.99, "seed {seed}: {push:?}");
+                push.target_px[0]
+            })
+            .collect()
+    };
+    let near = |x: Real, c: Real| (x - c).abs() < 5.0;
+    // The left box has its own label: pushing it again splits nothing.
+    for x in pushed_x(&Config::PAPER) {
+        assert!(
+            near(x, centres[1]) || near(x, centres[2]),
+            "{x} {centres:?}"
+        );
+    }
+    // The paper's choice pushes the smaller cluster of the best pair: the left box.
+    let paper = Config {
+        push_carry_frac: 0.0,
+        ..Config::PAPER
+    };
+    assert!(pushed_x(&paper).iter().any(|&x| near(x, centres[0])));
+}
+
+#[test]
+fn splits_count_pairs_of_one_label_that_one_push_separates() {
+    // Labels 1 1 2 2 0 0 (0: background, never a pair); clusters 0, 2 and 4 move.
+    let labels = [1, 1, 2, 2, 0, 0];
+    assert_eq!(push::splits(&labels, 0b01_0101), 2);
+    // Moving all of a label, or nothing, splits none of it.
+    assert_eq!(push::splits(&labels, 0b00_0011), 0);
+    assert_eq!(push::splits(&labels, 0), 0);
+    assert_eq!(push::splits(&[7, 7, 7], 0b010), 2);
+}

@@ -455,8 +455,6 @@ impl Bend {
     /// Fits the plane heights `(p, h)` of the table's points; `None` if there are too few or
     /// they do not determine a quadratic.
     fn fit(e1: P3, e2: P3, points: impl Iterator<Item = (P3, f32)>) -> Option<Self> {
-        let mut ata = nalgebra::Matrix6::<f64>::zeros();
-        let mut atb = nalgebra::Vector6::<f64>::zeros();
         let mut samples: Vec<(f64, f64, f64)> = Vec::new();
         for (p, h) in points {
             samples.push((f64::from(dot(e1, p)), f64::from(dot(e2, p)), f64::from(h)));
@@ -467,11 +465,21 @@ impl Bend {
         let k = samples.len() as f64;
         let cu = samples.iter().map(|s| s.0).sum::<f64>() / k;
         let cv = samples.iter().map(|s| s.1).sum::<f64>() / k;
+        // The normal equations: `ata` is symmetric, so only its upper triangle is summed
+        // (each entry the same products in the same order) and then mirrored.
+        let mut upper = [[0.0f64; 6]; 6];
+        let mut tb = [0.0f64; 6];
         for &(u, v, h) in &samples {
-            let t = nalgebra::Vector6::from(Self::terms(u - cu, v - cv));
-            ata += t * t.transpose();
-            atb += t * h;
+            let t = Self::terms(u - cu, v - cv);
+            for a in 0..6 {
+                for b in a..6 {
+                    upper[a][b] += t[a] * t[b];
+                }
+                tb[a] += t[a] * h;
+            }
         }
+        let ata = nalgebra::Matrix6::from_fn(|a, b| upper[a.min(b)][a.max(b)]);
+        let atb = nalgebra::Vector6::from(tb);
         let c = ata.cholesky()?.solve(&atb);
         let coef = [c[0], c[1], c[2], c[3], c[4], c[5]].map(|v| v as f32);
         coef.iter().all(|v| v.is_finite()).then_some(Self {

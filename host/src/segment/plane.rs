@@ -284,10 +284,15 @@ pub(super) fn fit_table(
         w.saturating_sub(step / 2).div_ceil(step),
         h.saturating_sub(step / 2).div_ceil(step),
     );
-    let grid_pixel = |g: usize| (step / 2 + (g / gw) * step) * w + step / 2 + (g % gw) * step;
+    // The pixel of each grid cell, in cell order (row by row, without a division).
+    let grid_pixels = || {
+        (0..gh).flat_map(move |gy| {
+            (0..gw).map(move |gx| (step / 2 + gy * step) * w + step / 2 + gx * step)
+        })
+    };
     s.cand_pts.clear();
     s.cand_nrm.clear();
-    for i in (0..gw * gh).map(grid_pixel) {
+    for i in grid_pixels() {
         if pts[i][2] > 0.0 && nrm[i] != [0.0; 3] {
             s.cand_pts.push(pts[i]);
             s.cand_nrm.push(nrm[i]);
@@ -359,21 +364,20 @@ pub(super) fn fit_table(
 
     s.grid.clear();
     s.grid.resize(gw * gh, 0);
-    for g in 0..gw * gh {
-        let i = grid_pixel(g);
+    for (cell, i) in s.grid.iter_mut().zip(grid_pixels()) {
         let (p, q) = (pts[i], nrm[i]);
         if p[2] > 0.0
             && table.height_of(p).abs() <= params.plane_tolerance_m(p[2])
             && dot(n, q) >= cos_normal
         {
-            s.grid[g] = 1;
+            *cell = 1;
         }
     }
     let largest = largest_component(gw, gh, &mut s.grid, &mut s.queue);
     s.flat.clear();
-    for (g, &c) in s.grid.iter().enumerate() {
+    for (&c, i) in s.grid.iter().zip(grid_pixels()) {
         if c == largest {
-            let p = pts[grid_pixel(g)];
+            let p = pts[i];
             s.flat.push([dot(e1, p), dot(e2, p)]);
         }
     }

@@ -2,7 +2,8 @@
 //! at ambiguous creases).
 //!
 //! Pipeline, each stage documented in its module:
-//! 1. back-project depth, smooth the points edge-aware, normals from cross products
+//! 1. back-project depth (row by row as the smoothing reads it), smooth the points
+//!    edge-aware, normals from cross products
 //!    ([`geometry`](super::geometry));
 //! 2. fit the table plane by seeded RANSAC and least squares, and the hull of its inliers
 //!    ([`plane`](super::plane));
@@ -49,7 +50,6 @@ pub struct ClassicalOutput {
 
 #[derive(Debug, Default)]
 struct Scratch {
-    raw: Vec<P3>,
     smooth: geometry::SmoothScratch,
     pts: Vec<P3>,
     nrm: Vec<P3>,
@@ -131,7 +131,6 @@ impl ClassicalSegmenter {
         let n = w * h;
         let p = &self.params;
         let s = &mut self.scratch;
-        s.raw.resize(n, [0.0; 3]);
         s.pts.resize(n, [0.0; 3]);
         s.nrm.resize(n, [0.0; 3]);
         s.crease.resize(n, 0);
@@ -140,8 +139,7 @@ impl ClassicalSegmenter {
         s.hole.resize(n, 0);
         s.step.resize(n, 0);
 
-        geometry::back_project(frame, intrinsics, &mut s.raw);
-        geometry::smooth_points(w, h, &s.raw, p, &mut s.smooth, &mut s.pts);
+        geometry::smooth_points(frame, intrinsics, p, &mut s.smooth, &mut s.pts);
         geometry::normals(w, h, &s.smooth.planes, p, &mut s.nrm);
         let table = fit_table(w, h, &s.pts, &s.nrm, p, &mut s.plane)?;
         let px_per_m2 = 1.0 / (intrinsics.fx * intrinsics.fy);
@@ -157,11 +155,9 @@ impl ClassicalSegmenter {
             .for_each(|(y, (object, heat))| {
                 let [px, py, pz] = planes.row_xyz(y);
                 classify_row([px, py, pz], &table, p, object, heat);
-                for (x, object) in object.iter_mut().enumerate() {
-                    if *object {
-                        *object = table.hull.contains([px[x], py[x], pz[x]], p.hull_margin_m);
-                    }
-                }
+                table
+                    .hull
+                    .keep_inside([px, py, pz], p.hull_margin_m, object);
             });
 
         let crease_input = geometry::CreaseInput {

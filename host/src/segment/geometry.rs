@@ -37,23 +37,26 @@ pub(super) fn cross(a: P3, b: P3) -> P3 {
     ]
 }
 
-/// Back-projects every pixel with a depth reading; `[0, 0, 0]` elsewhere.
-pub(super) fn back_project(frame: &RgbdFrame<'_>, k: &Intrinsics, out: &mut [P3]) {
+/// Back-projects row `y` of `frame` into the planes `x`, `y`, `z` (`w` pixels): a pixel
+/// with a depth reading (finite, positive) gives its point, others `[0, 0, 0]`.
+/// Branch-free, since pixels without depth come and go along a row.
+fn back_project_row(
+    frame: &RgbdFrame<'_>,
+    k: &Intrinsics,
+    y: usize,
+    [ox, oy, oz]: [&mut [f32]; 3],
+) {
     let w = frame.width();
+    let z_row = &frame.depth_m()[y * w..(y + 1) * w];
+    let (ox, oy, oz) = (&mut ox[..w], &mut oy[..w], &mut oz[..w]);
     let (ifx, ify) = (1.0 / k.fx, 1.0 / k.fy);
-    out.par_chunks_mut(w)
-        .zip(frame.depth_m().par_chunks(w))
-        .enumerate()
-        .for_each(|(y, (row_out, row_z))| {
-            let yc = (y as f32 - k.cy) * ify;
-            for (x, (o, &z)) in row_out.iter_mut().zip(row_z).enumerate() {
-                *o = if z.is_finite() && z > 0.0 {
-                    [(x as f32 - k.cx) * ifx * z, yc * z, z]
-                } else {
-                    [0.0; 3]
-                };
-            }
-        });
+    let yc = (y as f32 - k.cy) * ify;
+    for (x, &z) in z_row.iter().enumerate() {
+        let m = mask((z > 0.0) & (z < f32::INFINITY));
+        ox[x] = keep((x as f32 - k.cx) * ifx * z, m);
+        oy[x] = keep(yc * z, m);
+        oz[x] = keep(z, m);
+    }
 }
 
 /// The smoothed points of every row as three planes (x, y, z), each `pad` zero pixels
@@ -202,7 +205,8 @@ impl WindowSums {
     }
 }
 
-/// Edge-aware smoothing of the points: the mean of the points within
+/// Edge-aware smoothing of the points back-projected from `frame` (no reading:
+/// `[0, 0, 0]`): the mean of the points within
 /// `smooth_radius_px` along the row whose depth is within
 /// [`SegmenterParams::depth_jump_at_m`] of the centre's, then the same along the column of
 /// that result (a separable bilateral filter with a box kernel: steps larger than the
@@ -210,13 +214,13 @@ impl WindowSums {
 /// `scratch.planes` (padded by `normal_radius_px`). Rows run in parallel with the
 /// `threads` feature, with the same result.
 pub(super) fn smooth_points(
-    w: usize,
-    h: usize,
-    raw: &[P3],
+    frame: &RgbdFrame<'_>,
+    k: &Intrinsics,
     params: &SegmenterParams,
     scratch: &mut SmoothScratch,
     out: &mut [P3],
 ) {
+    let (w, h) = (frame.width(), frame.height());
     let SmoothScratch { tmp, planes } = scratch;
     // Every value is written below.
     tmp.resize(3 * w * h, 0.0);
@@ -226,12 +230,8 @@ pub(super) fn smooth_points(
         || RowScratch::with_width(w, r),
         |rs, (y, t)| {
             let RowScratch { row, sums } = rs;
-            let row_in = &raw[y * w..(y + 1) * w];
-            for (k, plane) in row.iter_mut().enumerate() {
-                for (v, q) in plane[r..r + w].iter_mut().zip(row_in) {
-                    *v = q[k];
-                }
-            }
+            let [rx, ry, rz] = &mut *row;
+            back_project_row(frame, k, y, [&mut rx[r..], &mut ry[r..], &mut rz[r..]]);
             let [rx, ry, rz] = &*row;
             let cz = &rz[r..];
             sums.start(cz, params);
@@ -296,8 +296,10 @@ pub(super) fn drop_small_regions(
 ) {
     seen.clear();
     seen.resize(w * h, false);
-    for start in 0..w * h {
-        if crease[start] == 0 || seen[start] {
+    let mut next = 0;
+    while let Some(start) = next_nonzero(crease, next) {
+        next = start + 1;
+        if seen[start] {
             continue;
         }
         queue.clear();
@@ -326,6 +328,19 @@ pub(super) fn drop_small_regions(
             }
         }
     }
+}
+
+/// The first index from `from` on where `bytes` is not zero. Flags are sparse: runs of
+/// zeros are skipped sixteen bytes at a time (a test the compiler vectorises).
+fn next_nonzero(bytes: &[u8], from: usize) -> Option<usize> {
+    let rest = bytes.get(from..)?;
+    let mut chunks = rest.chunks_exact(16);
+    let skipped = chunks
+        .by_ref()
+        .take_while(|c| c.iter().fold(0, |a, &b| a | b) == 0)
+        .count();
+    let at = from + 16 * skipped;
+    bytes[at..].iter().position(|&b| b != 0).map(|k| at + k)
 }
 
 /// `true` if `q` is a reading on the same surface as `c`, `sep` pixels away.

@@ -27,6 +27,7 @@ use super::{
     SegmentError, SegmenterParams,
     geometry::{CREASE_BLOCK, P3, dot, sub},
 };
+use crate::par::*;
 
 /// Flag of a filled hole pixel in the `hole` buffer.
 pub(super) const HOLE: u8 = 1;
@@ -37,16 +38,44 @@ const ENCLOSED_SHARE: f32 = 0.8;
 /// Scratch of [`grow_segments`], reused across frames.
 #[derive(Debug, Default)]
 pub(super) struct GrowScratch {
-    comp: Vec<u32>,
+    /// Per pixel: the [`Links`] flags of rule 1.
+    links: Vec<u8>,
+    /// Union-find forest over the grown pixels (rule 1).
+    parent: Vec<u32>,
+    /// Per pixel: its segment as a dense id (segments numbered by their union-find root,
+    /// the least pixel index of their grown pixels), [`NONE`] outside every segment.
+    id: Vec<u32>,
     queue: Vec<u32>,
+    /// Per segment id: area, first pixel, segment it ends in (rule 3), label (rule 4).
     area: Vec<f32>,
     first: Vec<u32>,
-    target: Vec<u32>,
+    fate: Vec<u32>,
+    label: Vec<u32>,
+    /// Per segment id: whether a small segment joins it (its area is summed again).
+    grows: Vec<bool>,
     order: Vec<u32>,
     pairs: Vec<(u32, u32)>,
     tally: Vec<(u16, u32)>,
 }
 
+/// Flags of one pixel for rule 1, found for all pixels in parallel before the serial
+/// union-find.
+struct Links;
+
+impl Links {
+    /// A grown pixel: an object pixel not on a blocking crease.
+    const GROWN: u8 = 1;
+    /// Grown, and joins its right neighbour.
+    const JOIN_RIGHT: u8 = 2;
+    /// Grown, and joins the neighbour below.
+    const JOIN_DOWN: u8 = 4;
+    /// Grown, and a step to its right neighbour (grown, not joined, not convex).
+    const STEP_RIGHT: u8 = 8;
+    /// Grown, and a step to the neighbour below.
+    const STEP_DOWN: u8 = 16;
+    /// Grown, with a 4-neighbour on a blocking crease: where rule 2's search starts.
+    const SEED: u8 = 32;
+}
 /// Inputs of [`grow_segments`].
 pub(super) struct GrowInput<'a> {
     pub(super) w: usize,
@@ -133,8 +162,72 @@ impl RootSum {
     }
 }
 
+/// Rule 1's flags of row `y` into `links`, and its union-find parents (each grown pixel
+/// its own root, [`NONE`] elsewhere) into `parent`.
+fn link_row(
+    inp: &GrowInput<'_>,
+    params: &SegmenterParams,
+    cos_normal: f32,
+    y: usize,
+    links: &mut [u8],
+    parent: &mut [u32],
+) {
+    let (w, h) = (inp.w, inp.h);
+    let blocked = |i: usize| inp.crease[i] & CREASE_BLOCK != 0;
+    let grown = |i: usize| inp.object[i] && !blocked(i);
+    let on_crease = |i: usize| inp.object[i] && blocked(i);
+    for (x, (link, parent)) in links.iter_mut().zip(parent.iter_mut()).enumerate() {
+        let i = y * w + x;
+        *link = 0;
+        *parent = NONE;
+        if !grown(i) {
+            continue;
+        }
+        *parent = i as u32;
+        *link = Links::GROWN;
+        let (p, np) = (inp.pts[i], inp.nrm[i]);
+        let jump = params.depth_jump_at_m(p[2]);
+        for (j, join, step) in [
+            (
+                (x + 1 < w).then_some(i + 1),
+                Links::JOIN_RIGHT,
+                Links::STEP_RIGHT,
+            ),
+            (
+                (y + 1 < h).then_some(i + w),
+                Links::JOIN_DOWN,
+                Links::STEP_DOWN,
+            ),
+        ] {
+            // Both grown object pixels: join them, or flag a step.
+            let Some(j) = j.filter(|&j| grown(j)) else {
+                continue;
+            };
+            let nq = inp.nrm[j];
+            let joins = continuous_within(p, np, inp.pts[j], jump)
+                && (np == [0.0; 3] || nq == [0.0; 3] || dot(np, nq) >= cos_normal);
+            if joins {
+                *link |= join;
+            } else if !convex(inp.pts, inp.nrm, i, j) {
+                *link |= step;
+            }
+        }
+        if (x > 0 && on_crease(i - 1))
+            || (x + 1 < w && on_crease(i + 1))
+            || (y > 0 && on_crease(i - w))
+            || (y + 1 < h && on_crease(i + w))
+        {
+            *link |= Links::SEED;
+        }
+    }
+}
+
 /// Grows segments (module docs) into `labels` and flags filled holes in `hole`; returns the
 /// number of segments.
+///
+/// The per-pixel tests of rule 1 and the final labels run rows in parallel (with the
+/// `threads` feature); the union-find, the search of rule 2 and the sums run in row-major
+/// order, so every sum adds the same values in the same order whatever the thread count.
 ///
 /// # Errors
 /// [`SegmentError::TooManySegments`] if more than 65 535 segments remain after cleanup.
@@ -149,110 +242,101 @@ pub(super) fn grow_segments(
     let (w, h) = (inp.w, inp.h);
     let n = w * h;
     let cos_normal = libm::cosf(params.grow_normal_deg.to_radians());
-    let blocked = |i: usize| inp.crease[i] & CREASE_BLOCK != 0;
 
-    // 1. Union-find over the grown (non-crease) object pixels.
-    s.comp.clear();
-    s.comp
-        .extend((0..n as u32).map(|i| if inp.object[i as usize] { i } else { NONE }));
-    step.fill(0);
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            if !inp.object[i] || blocked(i) {
-                continue;
+    // 1. Union-find over the grown (non-crease) object pixels; a pixel's root is the least
+    // index in its tree (see `union`), so the roots do not depend on the order of joins.
+    s.links.resize(n, 0);
+    s.parent.resize(n, NONE);
+    s.links
+        .par_chunks_mut(w)
+        .zip(s.parent.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (links, parent))| link_row(inp, params, cos_normal, y, links, parent));
+    let links: &[u8] = &s.links;
+    step.par_chunks_mut(w).enumerate().for_each(|(y, step)| {
+        let row = &links[y * w..(y + 1) * w];
+        let above = y.checked_sub(1).map(|u| &links[u * w..(u + 1) * w]);
+        for (x, st) in step.iter_mut().enumerate() {
+            let mut f = row[x] & (Links::STEP_RIGHT | Links::STEP_DOWN);
+            if x > 0 {
+                f |= row[x - 1] & Links::STEP_RIGHT;
             }
-            let (p, np) = (inp.pts[i], inp.nrm[i]);
-            let jump = params.depth_jump_at_m(p[2]);
-            for j in [(x + 1 < w).then_some(i + 1), (y + 1 < h).then_some(i + w)]
-                .into_iter()
-                .flatten()
-            {
-                // Both grown object pixels: join them, or flag a step.
-                if !inp.object[j] || blocked(j) {
-                    continue;
-                }
-                let nq = inp.nrm[j];
-                let joins = continuous_within(p, np, inp.pts[j], jump)
-                    && (np == [0.0; 3] || nq == [0.0; 3] || dot(np, nq) >= cos_normal);
-                if joins {
-                    union(&mut s.comp, i as u32, j as u32);
-                } else if !convex(inp.pts, inp.nrm, i, j) {
-                    (step[i], step[j]) = (1, 1);
-                }
+            if let Some(above) = above {
+                f |= above[x] & Links::STEP_DOWN;
             }
+            *st = u8::from(f != 0);
+        }
+    });
+    for (i, &link) in links.iter().enumerate() {
+        if link & Links::JOIN_RIGHT != 0 {
+            union(&mut s.parent, i as u32, i as u32 + 1);
+        }
+        if link & Links::JOIN_DOWN != 0 {
+            union(&mut s.parent, i as u32, (i + w) as u32);
         }
     }
-    for i in 0..n {
-        if s.comp[i] != NONE {
-            s.comp[i] = if blocked(i) {
-                NONE
-            } else {
-                find(&mut s.comp, i as u32)
-            };
+    // Dense ids in the order of the roots; the seeds of rule 2 in row-major order.
+    s.id.resize(n, NONE);
+    s.queue.clear();
+    let mut count = 0u32;
+    for (i, &link) in links.iter().enumerate() {
+        if link & Links::GROWN == 0 {
+            s.id[i] = NONE;
+            continue;
+        }
+        let r = find(&mut s.parent, i as u32) as usize;
+        s.id[i] = if r == i {
+            count += 1;
+            count - 1
+        } else {
+            s.id[r]
+        };
+        if link & Links::SEED != 0 {
+            s.queue.push(i as u32);
         }
     }
 
     // 2. Crease pixels take the segment of the nearest grown pixel.
-    s.queue.clear();
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            if s.comp[i] == NONE {
-                continue;
-            }
-            let crease = |j: usize| s.comp[j] == NONE && inp.object[j];
-            if (x > 0 && crease(i - 1))
-                || (x + 1 < w && crease(i + 1))
-                || (y > 0 && crease(i - w))
-                || (y + 1 < h && crease(i + w))
-            {
-                s.queue.push(i as u32);
-            }
-        }
-    }
     let mut head = 0;
     while let Some(&i) = s.queue.get(head) {
         head += 1;
         let i = i as usize;
         for j in neighbours(i, w, h) {
-            if s.comp[j] == NONE
+            if s.id[j] == NONE
                 && inp.object[j]
                 && continuous(inp.pts[i], inp.nrm[i], inp.pts[j], params)
             {
-                s.comp[j] = s.comp[i];
+                s.id[j] = s.id[i];
                 s.queue.push(j as u32);
             }
         }
     }
 
-    // 3. Areas per root, then small segments join their best large neighbour.
+    // 3. Areas and first pixels per segment, and the depth-continuous 4-neighbour pairs of
+    // different segments; then small segments join their best large neighbour.
+    let count = count as usize;
     s.area.clear();
-    s.area.resize(n, 0.0);
-    let mut sum = RootSum::default();
-    for (&r, &a) in s.comp.iter().zip(inp.px_area_m2) {
-        if r != NONE {
-            sum.add(&mut s.area, r, a);
-        }
-    }
-    sum.flush(&mut s.area);
-    let small = |area: &[f32], r: u32| area[r as usize] < params.min_segment_area_m2;
+    s.area.resize(count, 0.0);
+    s.first.clear();
+    s.first.resize(count, NONE);
     s.pairs.clear();
+    let mut sum = RootSum::default();
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
-            let a = s.comp[i];
+            let a = s.id[i];
             if a == NONE {
                 continue;
             }
-            for j in [
-                Some(i + 1).filter(|_| x + 1 < w),
-                Some(i + w).filter(|_| y + 1 < h),
-            ]
-            .into_iter()
-            .flatten()
+            sum.add(&mut s.area, a, inp.px_area_m2[i]);
+            if s.first[a as usize] == NONE {
+                s.first[a as usize] = i as u32;
+            }
+            for j in [(x + 1 < w).then_some(i + 1), (y + 1 < h).then_some(i + w)]
+                .into_iter()
+                .flatten()
             {
-                let b = s.comp[j];
+                let b = s.id[j];
                 if b == NONE || b == a {
                     continue;
                 }
@@ -261,62 +345,81 @@ pub(super) fn grow_segments(
                 if pi[2] > 0.0 && pj[2] > 0.0 && (pi[2] - pj[2]).abs() > jump {
                     continue;
                 }
-                match (small(&s.area, a), small(&s.area, b)) {
-                    (true, false) => s.pairs.push((a, b)),
-                    (false, true) => s.pairs.push((b, a)),
-                    _ => {}
-                }
+                s.pairs.push((a, b));
             }
         }
     }
+    sum.flush(&mut s.area);
+    let small = |area: &[f32], d: u32| area[d as usize] < params.min_segment_area_m2;
+    // Each pair as (small, large); the others go.
+    {
+        let area = &s.area;
+        s.pairs
+            .retain_mut(|pair| match (small(area, pair.0), small(area, pair.1)) {
+                (true, false) => true,
+                (false, true) => {
+                    *pair = (pair.1, pair.0);
+                    true
+                }
+                _ => false,
+            });
+    }
     s.pairs.sort_unstable();
-    s.target.clear();
-    s.target.resize(n, NONE);
+    // `fate`: the segment each ends in (itself if large, NONE if it becomes background).
+    s.fate.clear();
+    s.fate
+        .extend((0..count as u32).map(|d| if small(&s.area, d) { NONE } else { d }));
+    s.grows.clear();
+    s.grows.resize(count, false);
     let mut k = 0;
     while k < s.pairs.len() {
         let from = s.pairs[k].0;
         let (mut best, mut best_count) = (NONE, 0);
         while k < s.pairs.len() && s.pairs[k].0 == from {
             let to = s.pairs[k].1;
-            let mut count = 0;
+            let mut c = 0;
             while k < s.pairs.len() && s.pairs[k] == (from, to) {
-                count += 1;
+                c += 1;
                 k += 1;
             }
-            if count > best_count {
-                (best, best_count) = (to, count);
+            if c > best_count {
+                (best, best_count) = (to, c);
             }
         }
-        s.target[from as usize] = best;
-    }
-    for i in 0..n {
-        let r = s.comp[i];
-        if r != NONE && small(&s.area, r) {
-            s.comp[i] = s.target[r as usize];
+        s.fate[from as usize] = best;
+        if best != NONE {
+            s.grows[best as usize] = true;
+            s.first[best as usize] = s.first[best as usize].min(s.first[from as usize]);
         }
+    }
+    // A segment that small ones joined: its area again, over all its pixels in row-major
+    // order (the same sum as over the merged labels).
+    if s.grows.contains(&true) {
+        for (d, area) in s.area.iter_mut().enumerate() {
+            if s.grows[d] {
+                *area = 0.0;
+            }
+        }
+        let mut sum = RootSum::default();
+        for (&d, &a) in s.id.iter().zip(inp.px_area_m2) {
+            if d == NONE {
+                continue;
+            }
+            let f = s.fate[d as usize];
+            if f != NONE && s.grows[f as usize] {
+                sum.add(&mut s.area, f, a);
+            }
+        }
+        sum.flush(&mut s.area);
     }
 
     // 4. Labels by decreasing area.
-    s.area.fill(0.0);
-    s.first.clear();
-    s.first.resize(n, NONE);
     s.order.clear();
-    let mut sum = RootSum::default();
-    for i in 0..n {
-        let r = s.comp[i];
-        if r == NONE {
-            continue;
-        }
-        if s.first[r as usize] == NONE {
-            s.first[r as usize] = i as u32;
-            s.order.push(r);
-        }
-        sum.add(&mut s.area, r, inp.px_area_m2[i]);
-    }
-    sum.flush(&mut s.area);
-    let count = s.order.len();
-    if count > usize::from(u16::MAX) {
-        return Err(SegmentError::TooManySegments { count });
+    s.order
+        .extend((0..count as u32).filter(|&d| s.fate[d as usize] == d));
+    let segments = s.order.len();
+    if segments > usize::from(u16::MAX) {
+        return Err(SegmentError::TooManySegments { count: segments });
     }
     {
         let (area, first) = (&s.area, &s.first);
@@ -326,20 +429,33 @@ pub(super) fn grow_segments(
                 .then(first[a as usize].cmp(&first[b as usize]))
         });
     }
-    // Reuse `target` as root -> label.
-    for (rank, &r) in s.order.iter().enumerate() {
-        s.target[r as usize] = rank as u32 + 1;
+    s.label.clear();
+    s.label.resize(count, 0);
+    for (rank, &d) in s.order.iter().enumerate() {
+        s.label[d as usize] = rank as u32 + 1;
     }
-    for (l, &r) in labels.iter_mut().zip(&s.comp) {
-        *l = if r == NONE {
-            0
-        } else {
-            s.target[r as usize] as u16
-        };
+    for d in 0..count {
+        let f = s.fate[d];
+        if f != NONE {
+            s.label[d] = s.label[f as usize];
+        }
     }
+    let (id, label): (&[u32], &[u32]) = (&s.id, &s.label);
+    labels
+        .par_chunks_mut(w)
+        .zip(id.par_chunks(w))
+        .for_each(|(labels, id)| {
+            for (l, &d) in labels.iter_mut().zip(id) {
+                *l = if d == NONE {
+                    0
+                } else {
+                    label[d as usize] as u16
+                };
+            }
+        });
 
     fill_holes(inp, params, s, labels, hole);
-    Ok(count)
+    Ok(segments)
 }
 
 /// Rule 5 of the module docs.
@@ -352,15 +468,16 @@ fn fill_holes(
 ) {
     let (w, h) = (inp.w, inp.h);
     hole.fill(0);
-    // `comp` marks visited hole pixels from here on.
-    s.comp.fill(0);
+    // Pixels without depth are in no segment (`id` is NONE there): from here on `id` marks
+    // the visited ones.
+    let visited = 0;
     for start in 0..w * h {
-        if inp.pts[start][2] > 0.0 || s.comp[start] != 0 {
+        if inp.pts[start][2] > 0.0 || s.id[start] != NONE {
             continue;
         }
         s.queue.clear();
         s.queue.push(start as u32);
-        s.comp[start] = 1;
+        s.id[start] = visited;
         s.tally.clear();
         let (mut border, mut labelled, mut border_area) = (0u32, 0u32, 0.0f32);
         let mut head = 0;
@@ -372,8 +489,8 @@ fn fill_holes(
             border += u32::from(y == 0) + u32::from(y + 1 == h);
             for j in neighbours(i, w, h) {
                 if inp.pts[j][2] <= 0.0 {
-                    if s.comp[j] == 0 {
-                        s.comp[j] = 1;
+                    if s.id[j] == NONE {
+                        s.id[j] = visited;
                         s.queue.push(j as u32);
                     }
                     continue;

@@ -73,6 +73,9 @@ pub(super) struct HeatScratch {
     d_background: Vec<f32>,
     mean_z: Vec<(f64, u32)>,
     notch: Vec<u32>,
+    /// Segment pixels with a 4-neighbour off the image or in another segment (or none),
+    /// in row-major order: the candidates of the necks' outline.
+    rim: Vec<u32>,
     moments: Vec<Moments>,
     cuts: Vec<Option<Cut>>,
     edt: EdtScratch,
@@ -113,10 +116,13 @@ pub(super) fn heatmap(
     // The current label's sum stays in registers along a run of its pixels (the same
     // additions in the same order).
     let mut run: Option<(usize, (f64, u32))> = None;
+    // The least depth of a segment pixel (a filled hole's mean depth is no less).
+    let mut z_min = f32::INFINITY;
     for (&l, p) in labels.iter().zip(inp.pts) {
         if l == 0 || p[2] <= 0.0 {
             continue;
         }
+        z_min = z_min.min(p[2]);
         let l = usize::from(l);
         match &mut run {
             Some((rl, m)) if *rl == l => *m = (m.0 + f64::from(p[2]), m.1 + 1),
@@ -147,6 +153,7 @@ pub(super) fn heatmap(
     // 1a. Contacts and their gaps (and 1b. creases, steps and holes).
     s.mark.clear();
     s.mark.resize(n, 0);
+    s.rim.clear();
     for (i, (x, y)) in (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).enumerate() {
         let a = labels[i];
         if a == 0 {
@@ -158,6 +165,11 @@ pub(super) fn heatmap(
         }
         // Every scan stops at once where each 4-neighbour is off the image or in `a`.
         let same = |j: usize| labels[j] == a;
+        let inner = [x > 0, x + 1 < w, y > 0, y + 1 < h];
+        if !inner.contains(&false) && same(i - 1) && same(i + 1) && same(i - w) && same(i + w) {
+            continue;
+        }
+        s.rim.push(i as u32);
         if (x == 0 || same(i - 1))
             && (x + 1 == w || same(i + 1))
             && (y == 0 || same(i - w))
@@ -207,7 +219,7 @@ pub(super) fn heatmap(
     }
 
     // 1c. Necks.
-    necks(inp, params, &mut s.notch, &mut s.mark);
+    necks(inp, params, &s.rim, &mut s.notch, &mut s.mark);
 
     // 2. Distance to the background. Only segment pixels read the distances, and every
     // source lies in the segments' bounding box: the distance to the sources is exact
@@ -225,10 +237,26 @@ pub(super) fn heatmap(
         y0: inner.y0.saturating_sub(1),
         y1: (inner.y1 + 1).min(h),
     };
+    // Farther than these (pixels) the distances change no heat (rule 3: the band and the
+    // ramp end, as does the interior of the pack rule) at any segment pixel, whose depth is
+    // at least `z_min`; with 1 % to spare for rounding. Beyond them the transforms need not
+    // be exact.
+    let has_depth = mean_z[1..].iter().all(|&(_, c)| c > 0);
+    let m_min = z_min * inp.inv_focal;
+    let beyond_px = |m: f32| {
+        if has_depth && m_min.is_finite() && m_min > 0.0 {
+            1.01 * m / m_min + 1.0
+        } else {
+            f32::INFINITY
+        }
+    };
+    let source_px = beyond_px(params.band_m + params.certain_ramp_m);
+    let background_px = beyond_px((params.rim_m + params.certain_ramp_m).max(params.band_m));
     let mark = &s.mark;
     squared_distance(
         w,
         outer,
+        background_px,
         |i| labels[i] == 0 && mark[i] & GAP == 0,
         &mut s.edt,
         &mut s.d_background,
@@ -245,7 +273,14 @@ pub(super) fn heatmap(
 
     // 3. Heat.
     let mark = &s.mark;
-    squared_distance(w, inner, |i| mark[i] != 0, &mut s.edt, &mut s.d_source);
+    squared_distance(
+        w,
+        inner,
+        source_px,
+        |i| mark[i] != 0,
+        &mut s.edt,
+        &mut s.d_source,
+    );
     let (d_source, d_background) = (&s.d_source, &s.d_background);
     heat.par_chunks_mut(w).enumerate().for_each(|(y, heat)| {
         for (x, heat) in heat.iter_mut().enumerate() {
@@ -376,8 +411,7 @@ fn pack_cuts(
             && let Some(m) = moments.get_mut(usize::from(l))
         {
             // Sources in the interior: a hole or contact at the rim divides nothing.
-            let d_b_m = d2_px.sqrt() * p[2].max(0.0) * inp.inv_focal;
-            if mk & SOURCE != 0 && d_b_m > params.band_m {
+            if mk & SOURCE != 0 && d2_px.sqrt() * p[2].max(0.0) * inp.inv_focal > params.band_m {
                 m.sources += 1;
             }
             if p[2] > 0.0 {
@@ -461,7 +495,15 @@ pub(super) struct Cut {
 }
 
 /// Marks the necks of the segments as sources (module docs, rule 1).
-fn necks(inp: &HeatInput<'_>, params: &SegmenterParams, notch: &mut Vec<u32>, mark: &mut [u8]) {
+/// `rim`: the segment pixels that may be on an outline (see [`HeatScratch`]), in row-major
+/// order.
+fn necks(
+    inp: &HeatInput<'_>,
+    params: &SegmenterParams,
+    rim: &[u32],
+    notch: &mut Vec<u32>,
+    mark: &mut [u8],
+) {
     let (w, h) = (inp.w, inp.h);
     let labels = inp.labels;
     let px_per_m = |z: f32| 1.0 / (z * inp.inv_focal);
@@ -471,9 +513,11 @@ fn necks(inp: &HeatInput<'_>, params: &SegmenterParams, notch: &mut Vec<u32>, ma
     notch.clear();
     // The last disc's radius and half-widths.
     let mut disc: (isize, Vec<isize>) = (0, Vec::new());
-    for (i, (x, y)) in (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).enumerate() {
+    for &i in rim {
+        let i = i as usize;
+        let (x, y) = (i % w, i / w);
         let (a, z) = (labels[i], inp.pts[i][2]);
-        if a == 0 || z <= 0.0 {
+        if z <= 0.0 {
             continue;
         }
         let outline = [

@@ -100,40 +100,151 @@ pub(super) struct Hull {
     e2: P3,
     /// Edges as `(a, b, c)`: `a·u + b·v + c` is the distance inside the edge, metres.
     edges: Vec<[f32; 3]>,
+    /// [`HULL_SLACK`] times the hull's extent, metres.
+    slack_m: f32,
 }
 
+/// Slack of [`Hull::keep_inside`] per metre of the hull's extent: far above the rounding
+/// of an edge test in `f32` (about 1e-7 per metre).
+const HULL_SLACK: f32 = 1e-4;
+
 impl Hull {
-    /// `true` if the footprint of `p` on the plane is at least `margin_m` inside the hull.
-    pub(super) fn contains(&self, p: P3, margin_m: f32) -> bool {
-        if self.edges.len() < 3 {
-            return false;
+    /// The hull of the convex polygon `vertices` (plane coordinates, counter-clockwise)
+    /// with the in-plane axes `e1`, `e2`.
+    fn new(e1: P3, e2: P3, vertices: &[[f32; 2]]) -> Self {
+        let edges = vertices
+            .iter()
+            .zip(vertices.iter().cycle().skip(1))
+            .filter_map(|(a, b)| {
+                let (tx, ty) = (b[0] - a[0], b[1] - a[1]);
+                let len = (tx * tx + ty * ty).sqrt();
+                (len > 1e-9).then(|| {
+                    let (nx, ny) = (-ty / len, tx / len);
+                    [nx, ny, -(nx * a[0] + ny * a[1])]
+                })
+            })
+            .collect();
+        let extent = vertices
+            .iter()
+            .map(|v| v[0].abs() + v[1].abs())
+            .fold(1.0f32, f32::max);
+        Self {
+            e1,
+            e2,
+            edges,
+            slack_m: HULL_SLACK * extent,
         }
-        let (u, v) = (dot(self.e1, p), dot(self.e2, p));
-        // Every edge, without stopping at the first miss: the compiler vectorises it.
-        self.edges.iter().fold(true, |inside, e| {
-            inside & (e[0] * u + e[1] * v + e[2] >= margin_m)
-        })
+    }
+
+    /// Keeps the `candidates` (a row of points as x, y and z planes) whose footprint on
+    /// the plane is at least `margin_m` inside the hull (every edge at least `margin_m`
+    /// away), and clears the others.
+    ///
+    /// Neighbouring pixels have nearby footprints. A point found inside with every edge
+    /// farther than `margin_m + slack + r` vouches for the later points within `r` of it:
+    /// they pass every edge test too (the slack covers the rounding), so their edge tests
+    /// are skipped with the same answer.
+    pub(super) fn keep_inside(
+        &self,
+        [px, py, pz]: [&[f32]; 3],
+        margin_m: f32,
+        candidates: &mut [bool],
+    ) {
+        if self.edges.len() < 3 {
+            candidates.fill(false);
+            return;
+        }
+        let mut anchor: Option<(f32, f32, f32)> = None;
+        for (x, keep) in candidates.iter_mut().enumerate() {
+            if !*keep {
+                continue;
+            }
+            let p = [px[x], py[x], pz[x]];
+            let (u, v) = (dot(self.e1, p), dot(self.e2, p));
+            if let Some((au, av, r)) = anchor {
+                let (du, dv) = (u - au, v - av);
+                if du * du + dv * dv <= r * r {
+                    continue;
+                }
+            }
+            let (inside, least) =
+                self.edges
+                    .iter()
+                    .fold((true, f32::INFINITY), |(inside, least), e| {
+                        let d = e[0] * u + e[1] * v + e[2];
+                        (inside & (d >= margin_m), least.min(d))
+                    });
+            *keep = inside;
+            let r = least - margin_m - self.slack_m;
+            if inside && r > 0.0 {
+                anchor = Some((u, v, r));
+            }
+        }
     }
 }
 
 /// Scratch of [`fit_table`], reused across frames.
 #[derive(Debug, Default)]
 pub(super) struct PlaneScratch {
-    cand: Vec<u32>,
-    allowed: Vec<u32>,
-    samples: Vec<Sample>,
+    /// The candidates' points and normals, gathered once from the grid: every pass over
+    /// them reads memory in order.
+    cand_pts: Vec<P3>,
+    cand_nrm: Vec<P3>,
+    ransac: RansacScratch,
     flat: Vec<[f32; 2]>,
     hull: Vec<[f32; 2]>,
     grid: Vec<u32>,
     queue: Vec<u32>,
 }
 
-/// A RANSAC scoring sample: point, normal and inlier tolerance.
-#[derive(Debug, Clone, Copy)]
-struct Sample {
-    p: P3,
-    n: P3,
-    tol_m: f32,
+/// Scratch of [`ransac`].
+#[derive(Debug, Default)]
+struct RansacScratch {
+    /// Indices of the candidates the search may use.
+    allowed: Vec<u32>,
+    samples: Samples,
+}
+
+/// The RANSAC scoring samples as planes (point x, y, z, normal x, y, z, inlier
+/// tolerance), so that counting the inliers of a hypothesis vectorises.
+#[derive(Debug, Default)]
+struct Samples {
+    p: [Vec<f32>; 3],
+    n: [Vec<f32>; 3],
+    tol_m: Vec<f32>,
+}
+
+impl Samples {
+    fn clear(&mut self) {
+        for v in self.p.iter_mut().chain(&mut self.n) {
+            v.clear();
+        }
+        self.tol_m.clear();
+    }
+
+    fn push(&mut self, p: P3, n: P3, tol_m: f32) {
+        for k in 0..3 {
+            self.p[k].push(p[k]);
+            self.n[k].push(n[k]);
+        }
+        self.tol_m.push(tol_m);
+    }
+
+    /// How many samples are inliers of `plane` ([`is_inlier`]).
+    fn inliers(&self, plane: &TablePlane, cos_normal: f32) -> usize {
+        let k = self.tol_m.len();
+        let [px, py, pz] = self.p.each_ref().map(|v| &v[..k]);
+        let [nx, ny, nz] = self.n.each_ref().map(|v| &v[..k]);
+        let [a, b, c] = plane.normal_array();
+        let tol_m = &self.tol_m[..k];
+        let mut count = 0u32;
+        for j in 0..k {
+            let height = plane.height_of([px[j], py[j], pz[j]]);
+            let facing = a * nx[j] + b * ny[j] + c * nz[j];
+            count += u32::from((height.abs() <= tol_m[j]) & (facing >= cos_normal));
+        }
+        count as usize
+    }
 }
 
 /// The fitted table: plane, bend and the hull objects must stand in.
@@ -173,40 +284,48 @@ pub(super) fn fit_table(
         w.saturating_sub(step / 2).div_ceil(step),
         h.saturating_sub(step / 2).div_ceil(step),
     );
-    let grid_pixel = |g: usize| (step / 2 + (g / gw) * step) * w + step / 2 + (g % gw) * step;
-    s.cand.clear();
-    s.cand.extend(
-        (0..gw * gh)
-            .map(grid_pixel)
-            .filter(|&i| pts[i][2] > 0.0 && nrm[i] != [0.0; 3])
-            .map(|i| i as u32),
-    );
-    let needed = ((params.min_table_share * s.cand.len() as f32).ceil() as usize).max(3);
+    // The pixel of each grid cell, in cell order (row by row, without a division).
+    let grid_pixels = || {
+        (0..gh).flat_map(move |gy| {
+            (0..gw).map(move |gx| (step / 2 + gy * step) * w + step / 2 + gx * step)
+        })
+    };
+    s.cand_pts.clear();
+    s.cand_nrm.clear();
+    for i in grid_pixels() {
+        if pts[i][2] > 0.0 && nrm[i] != [0.0; 3] {
+            s.cand_pts.push(pts[i]);
+            s.cand_nrm.push(nrm[i]);
+        }
+    }
+    let (cand_pts, cand_nrm) = (&s.cand_pts, &s.cand_nrm);
+    let candidates = cand_pts.len();
+    let needed = ((params.min_table_share * candidates as f32).ceil() as usize).max(3);
     let cos_normal = libm::cosf(params.plane_normal_deg.to_radians());
     let mut rng = Pcg32::new(params.seed);
 
-    s.allowed.clone_from(&s.cand);
-    let (mut plane, inliers) = ransac(pts, nrm, None, params, &mut rng, s);
+    let rs = &mut s.ransac;
+    rs.allowed.clear();
+    rs.allowed.extend(0..candidates as u32);
+    let (mut plane, inliers) = ransac(cand_pts, cand_nrm, None, params, &mut rng, rs);
     if inliers < needed {
         return Err(SegmentError::NoTablePlane {
             inliers,
-            candidates: s.cand.len(),
+            candidates,
             needed,
         });
     }
     for _ in 0..MAX_RAISES {
         let base = plane;
-        s.allowed.clear();
-        s.allowed.extend(
-            s.cand
-                .iter()
-                .copied()
-                .filter(|&i| base.height_of(pts[i as usize]) > params.table_step_m),
+        rs.allowed.clear();
+        rs.allowed.extend(
+            (0..candidates as u32)
+                .filter(|&k| base.height_of(cand_pts[k as usize]) > params.table_step_m),
         );
-        if s.allowed.len() < needed {
+        if rs.allowed.len() < needed {
             break;
         }
-        let (higher, n) = ransac(pts, nrm, Some(&base), params, &mut rng, s);
+        let (higher, n) = ransac(cand_pts, cand_nrm, Some(&base), params, &mut rng, rs);
         if n < needed {
             break;
         }
@@ -225,19 +344,14 @@ pub(super) fn fit_table(
     let mut table = TableFit {
         plane,
         bend: Bend::flat(e1, e2),
-        hull: Hull {
-            e1,
-            e2,
-            edges: Vec::new(),
-        },
+        hull: Hull::new(e1, e2, &[]),
     };
     for widen in [2.5, 1.0, 1.0] {
         let fit = &table;
         let Some(bend) = Bend::fit(
             e1,
             e2,
-            s.cand.iter().filter_map(|&i| {
-                let (p, q) = (pts[i as usize], nrm[i as usize]);
+            cand_pts.iter().zip(cand_nrm).filter_map(|(&p, &q)| {
                 let tol = widen * params.plane_tolerance_m(p[2]);
                 (fit.height_of(p).abs() <= tol && dot(n, q) >= cos_normal)
                     .then(|| (p, plane.height_of(p)))
@@ -250,38 +364,25 @@ pub(super) fn fit_table(
 
     s.grid.clear();
     s.grid.resize(gw * gh, 0);
-    for g in 0..gw * gh {
-        let i = grid_pixel(g);
+    for (cell, i) in s.grid.iter_mut().zip(grid_pixels()) {
         let (p, q) = (pts[i], nrm[i]);
         if p[2] > 0.0
             && table.height_of(p).abs() <= params.plane_tolerance_m(p[2])
             && dot(n, q) >= cos_normal
         {
-            s.grid[g] = 1;
+            *cell = 1;
         }
     }
     let largest = largest_component(gw, gh, &mut s.grid, &mut s.queue);
     s.flat.clear();
-    for (g, &c) in s.grid.iter().enumerate() {
+    for (&c, i) in s.grid.iter().zip(grid_pixels()) {
         if c == largest {
-            let p = pts[grid_pixel(g)];
+            let p = pts[i];
             s.flat.push([dot(e1, p), dot(e2, p)]);
         }
     }
     convex_hull(&mut s.flat, &mut s.hull);
-    table.hull.edges = s
-        .hull
-        .iter()
-        .zip(s.hull.iter().cycle().skip(1))
-        .filter_map(|(a, b)| {
-            let (tx, ty) = (b[0] - a[0], b[1] - a[1]);
-            let len = (tx * tx + ty * ty).sqrt();
-            (len > 1e-9).then(|| {
-                let (nx, ny) = (-ty / len, tx / len);
-                [nx, ny, -(nx * a[0] + ny * a[1])]
-            })
-        })
-        .collect();
+    table.hull = Hull::new(e1, e2, &s.hull);
     Ok(table)
 }
 
@@ -358,8 +459,6 @@ impl Bend {
     /// Fits the plane heights `(p, h)` of the table's points; `None` if there are too few or
     /// they do not determine a quadratic.
     fn fit(e1: P3, e2: P3, points: impl Iterator<Item = (P3, f32)>) -> Option<Self> {
-        let mut ata = nalgebra::Matrix6::<f64>::zeros();
-        let mut atb = nalgebra::Vector6::<f64>::zeros();
         let mut samples: Vec<(f64, f64, f64)> = Vec::new();
         for (p, h) in points {
             samples.push((f64::from(dot(e1, p)), f64::from(dot(e2, p)), f64::from(h)));
@@ -370,11 +469,21 @@ impl Bend {
         let k = samples.len() as f64;
         let cu = samples.iter().map(|s| s.0).sum::<f64>() / k;
         let cv = samples.iter().map(|s| s.1).sum::<f64>() / k;
+        // The normal equations: `ata` is symmetric, so only its upper triangle is summed
+        // (each entry the same products in the same order) and then mirrored.
+        let mut upper = [[0.0f64; 6]; 6];
+        let mut tb = [0.0f64; 6];
         for &(u, v, h) in &samples {
-            let t = nalgebra::Vector6::from(Self::terms(u - cu, v - cv));
-            ata += t * t.transpose();
-            atb += t * h;
+            let t = Self::terms(u - cu, v - cv);
+            for a in 0..6 {
+                for b in a..6 {
+                    upper[a][b] += t[a] * t[b];
+                }
+                tb[a] += t[a] * h;
+            }
         }
+        let ata = nalgebra::Matrix6::from_fn(|a, b| upper[a.min(b)][a.max(b)]);
+        let atb = nalgebra::Vector6::from(tb);
         let c = ata.cholesky()?.solve(&atb);
         let coef = [c[0], c[1], c[2], c[3], c[4], c[5]].map(|v| v as f32);
         coef.iter().all(|v| v.is_finite()).then_some(Self {
@@ -402,15 +511,16 @@ fn normalise(v: P3) -> P3 {
     [v[0] / len, v[1] / len, v[2] / len]
 }
 
-/// Best plane among `s.allowed` (optionally near-parallel to `parallel_to`), refitted;
-/// returns it and its inlier count among `s.allowed`.
+/// Best plane among the points `pts` (normals `nrm`) of `s.allowed` (optionally
+/// near-parallel to `parallel_to`), refitted; returns it and its inlier count among
+/// `s.allowed`.
 fn ransac(
     pts: &[P3],
     nrm: &[P3],
     parallel_to: Option<&TablePlane>,
     params: &SegmenterParams,
     rng: &mut Pcg32,
-    s: &mut PlaneScratch,
+    s: &mut RansacScratch,
 ) -> (TablePlane, usize) {
     let cos_normal = libm::cosf(params.plane_normal_deg.to_radians());
     let cos_parallel = libm::cosf(PARALLEL_DEG.to_radians());
@@ -427,11 +537,8 @@ fn ransac(
     s.samples.clear();
     for _ in 0..SCORE_SAMPLES.min(m) {
         let i = s.allowed[rng.below(bound) as usize] as usize;
-        s.samples.push(Sample {
-            p: pts[i],
-            n: nrm[i],
-            tol_m: params.plane_tolerance_m(pts[i][2]),
-        });
+        s.samples
+            .push(pts[i], nrm[i], params.plane_tolerance_m(pts[i][2]));
     }
     let mut best: Option<(TablePlane, usize)> = None;
     for _ in 0..params.ransac_iterations {
@@ -445,18 +552,7 @@ fn ransac(
         {
             continue;
         }
-        // `is_inlier` over the samples.
-        let normal = plane.normal_array();
-        let count: u32 = s
-            .samples
-            .iter()
-            .map(|q| {
-                u32::from(
-                    (plane.height_of(q.p).abs() <= q.tol_m) & (dot(normal, q.n) >= cos_normal),
-                )
-            })
-            .sum();
-        let count = count as usize;
+        let count = s.samples.inliers(&plane, cos_normal);
         if best.is_none_or(|(_, n)| count > n) {
             best = Some((plane, count));
         }

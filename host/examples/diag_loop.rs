@@ -7,7 +7,9 @@
 //! (`LAYOUT`: loose, packed or mixed; the sim seeds of a bench's scenes are printed by
 //! `riseg bench --per-scene`). `--exact` feeds the tracker the simulator's exact flow
 //! instead of the built-in one, so the core is judged apart from the flow; `--quiet`
-//! prints one line per scene.
+//! prints one line per scene. `--dump DIR` (without `--quiet`) writes each push's pair as
+//! `DIR/SEED_T.a.png`, `.b.png` (frames `T-1` and `T`), `.labels.png` (truth at `T-1`)
+//! and `.gt.flo` (exact flow), which the `flow_objects` example reads.
 
 use core::cell::RefCell;
 use std::{collections::BTreeMap, rc::Rc};
@@ -102,9 +104,14 @@ fn main() -> anyhow::Result<()> {
     };
     let exact = args.iter().any(|a| a == "--exact");
     let quiet = args.iter().any(|a| a == "--quiet");
+    let dump = args
+        .iter()
+        .position(|a| a == "--dump")
+        .and_then(|i| args.get(i + 1))
+        .map(std::path::PathBuf::from);
     let (mut total, mut found, mut reach) = (0, 0, 0);
     for seed in args.iter().skip(1).filter_map(|a| a.parse::<u64>().ok()) {
-        let (n, f, c) = one(seed, layout, exact, quiet)?;
+        let (n, f, c) = one(seed, layout, exact, quiet, dump.as_deref())?;
         println!("scene {seed}: riseg {f}/{n} ceiling {c}/{n}");
         total += n;
         found += f;
@@ -119,6 +126,7 @@ fn one(
     layout: Layout,
     exact: bool,
     quiet: bool,
+    dump: Option<&std::path::Path>,
 ) -> anyhow::Result<(usize, usize, usize)> {
     let mut ceiling = MotionCeiling::new(CeilingParams::DEFAULT);
     let mut last = (0, 0, 0);
@@ -185,6 +193,22 @@ fn one(
                 )
                 .map_err(|e| e.to_string())?;
                 let exact = exact.with_unknown_as_nan();
+                if let Some(dir) = dump {
+                    let stem = dir.join(format!("{seed}_{}", f.t));
+                    std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
+                    let name = |s: &str| stem.with_extension(s);
+                    riseg::io::image::write_rgb8(&name("a.png"), &pf.rgb)
+                        .map_err(|e| e.to_string())?;
+                    riseg::io::image::write_rgb8(&name("b.png"), &f.frame.rgb)
+                        .map_err(|e| e.to_string())?;
+                    riseg::io::image::write_gray16(
+                        &name("labels.png"),
+                        pf.truth.as_ref().ok_or("truth")?,
+                    )
+                    .map_err(|e| e.to_string())?;
+                    riseg::io::image::write_flo(&name("gt.flo"), &exact)
+                        .map_err(|e| e.to_string())?;
+                }
                 let mut err: BTreeMap<u16, (f64, u32, u32, [f32; 4])> = BTreeMap::new();
                 for (i, &l) in prev_truth.iter().enumerate() {
                     if l == 0 || pf.depth_m.as_slice()[i] <= 0.0 {

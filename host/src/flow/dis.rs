@@ -93,6 +93,20 @@ pub struct FlowParams {
     pub polish_gd_iters: usize,
     /// Fixed-point refinement iterations of the full-resolution polish.
     pub polish_variational_iters: usize,
+    /// Weight of a penalty on a patch's departure from the flow it starts from (the
+    /// coarser level's, zero at the coarsest level) at the `coarse_anchor_levels` coarsest
+    /// levels, per patch pixel and squared pixel of the level, on the 0-255 scale of the
+    /// patch SSD; 0 turns it off. Look-alike objects (a row of identical boxes) match a
+    /// shift by one object's width about as well as their true motion; at coarse levels a
+    /// patch can land on such a copy and the finer levels cannot undo it. Try 4.
+    pub coarse_anchor: f32,
+    /// How many of the coarsest levels use `coarse_anchor`.
+    pub coarse_anchor_levels: usize,
+    /// Spatial propagation at the coarsest level too (with `spatial_propagation`). There a
+    /// patch covers several look-alike objects, and a neighbour's flow that matches a
+    /// copy spreads along a row of them; `false` keeps each coarsest patch to its own
+    /// descent.
+    pub coarsest_propagation: bool,
 }
 
 impl FlowParams {
@@ -113,6 +127,9 @@ impl FlowParams {
         data_weight: 5.0,
         polish_gd_iters: 0,
         polish_variational_iters: 0,
+        coarse_anchor: 0.0,
+        coarse_anchor_levels: 2,
+        coarsest_propagation: true,
     };
 
     /// Down to half resolution with two refinement iterations per level.
@@ -186,6 +203,11 @@ impl FlowParams {
         if !(ok(self.smoothness) && ok(self.data_weight)) {
             return Err(FlowError::InvalidParams(
                 "smoothness and data_weight must be finite and >= 0",
+            ));
+        }
+        if !ok(self.coarse_anchor) {
+            return Err(FlowError::InvalidParams(
+                "coarse_anchor must be finite and >= 0",
             ));
         }
         Ok(())
@@ -349,8 +371,13 @@ impl DisFlow {
             (fw, fh) = (lw, lh);
             let step = LevelStep {
                 gd_iters: prm.gd_iters,
-                propagation: prm.spatial_propagation,
+                propagation: prm.spatial_propagation && (l < coarsest || prm.coarsest_propagation),
                 variational_iters: prm.variational_iters,
+                anchor: if coarsest - l < prm.coarse_anchor_levels {
+                    prm.coarse_anchor
+                } else {
+                    0.0
+                },
             };
             self.level(i0, i1, lw, lh, &mut flow, &step);
         }
@@ -363,6 +390,7 @@ impl DisFlow {
                 gd_iters: prm.polish_gd_iters,
                 propagation: false,
                 variational_iters: prm.polish_variational_iters,
+                anchor: 0.0,
             };
             self.level(first, second, w, h, &mut flow, &step);
         }
@@ -401,6 +429,7 @@ impl DisFlow {
             stop_px: prm.gd_stop_px,
             mean_normalization: prm.mean_normalization,
             propagation: step.propagation,
+            anchor: step.anchor,
         };
         let patches = search_level(&t, &i1p, flow, &xs, &ys, &search);
         let grid = Grid {
@@ -444,6 +473,8 @@ struct LevelStep {
     gd_iters: usize,
     propagation: bool,
     variational_iters: usize,
+    /// [`FlowParams::coarse_anchor`] where it applies, else 0.
+    anchor: f32,
 }
 
 impl FlowEstimator for DisFlow {
@@ -595,6 +626,72 @@ mod tests {
         assert!(medium().estimate_gray(&b, &b).is_ok());
     }
 
+    /// Mean endpoint error of `flow` on each object of `labels` that moved more than 3 px
+    /// (`exact` NaN where unknown), as `(label, EPE px)`.
+    fn moved_object_epe(flow: &FlowImage, exact: &FlowImage, labels: &[u16]) -> Vec<(u16, f32)> {
+        let mut sums: std::collections::BTreeMap<u16, (f32, f32, f32)> = Default::default();
+        for ((&l, f), g) in labels.iter().zip(flow.as_slice()).zip(exact.as_slice()) {
+            if l != 0 && g[0].is_finite() && g[1].is_finite() {
+                let s = sums.entry(l).or_default();
+                s.0 += libm::hypotf(f[0] - g[0], f[1] - g[1]);
+                s.1 += libm::hypotf(g[0], g[1]);
+                s.2 += 1.0;
+            }
+        }
+        sums.into_iter()
+            .filter(|(_, s)| s.1 / s.2 > 3.0)
+            .map(|(l, s)| (l, s.0 / s.2))
+            .collect()
+    }
+
+    #[test]
+    fn coarse_anchor_keeps_a_pushed_box_off_its_look_alike_neighbours() {
+        use crate::rig::robot::PushCommand;
+        use crate::sim::{Layout, SimConfig, SimScene, ground_truth_flow};
+        use nalgebra::{Point3, Vector3};
+        // A row of five identical boxes (packed sim seed 9178956475854756214); the push is
+        // FindAction's first one in `riseg bench --layout packed --seed 3`, which moves one
+        // box about 18 px out of the row. Along the row a shift by one box matches about
+        // as well as no motion.
+        let config = SimConfig::D415.with_layout(Layout::Packed);
+        let mut sim = SimScene::with_config(9_178_956_475_854_756_214, config).unwrap();
+        let a = sim.render();
+        sim.push(&PushCommand {
+            start_robot_m: Point3::new(0.059_294_46, -0.074_526_42, 0.026_907_325),
+            direction_robot: Vector3::new(0.414_108_3, 0.910_227_6, 0.0),
+            length_m: 0.03,
+        })
+        .unwrap();
+        let b = sim.render();
+        let exact = ground_truth_flow(
+            &a.intrinsics,
+            &a.world_from_camera,
+            &a.labels,
+            &a.true_depth_m,
+            &a.object_poses,
+            &b.object_poses,
+        )
+        .unwrap()
+        .with_unknown_as_nan();
+        let anchored = FlowParams {
+            coarse_anchor: 4.0,
+            coarsest_propagation: false,
+            ..FlowParams::MEDIUM
+        };
+        for (name, params) in [("medium", FlowParams::MEDIUM), ("anchored", anchored)] {
+            let f = DisFlow::new(params)
+                .unwrap()
+                .estimate(a.rgb.view(), b.rgb.view())
+                .unwrap();
+            let epe = moved_object_epe(&f, &exact, a.labels.as_slice());
+            eprintln!("{name}: EPE of the moved objects {epe:?}");
+            if name == "anchored" {
+                assert!(!epe.is_empty());
+                assert!(epe.iter().all(|(_, e)| *e < 2.0), "{epe:?}");
+            }
+        }
+    }
+
     #[test]
     fn parameters_are_validated() {
         let bad = [
@@ -625,6 +722,10 @@ mod tests {
             },
             FlowParams {
                 gd_stop_px: -1.0,
+                ..FlowParams::MEDIUM
+            },
+            FlowParams {
+                coarse_anchor: -1.0,
                 ..FlowParams::MEDIUM
             },
         ];

@@ -55,6 +55,9 @@ pub(crate) struct SearchSettings {
     pub stop_px: f32,
     pub mean_normalization: bool,
     pub propagation: bool,
+    /// Weight of the anchor penalty `anchor · n · |d - d_start|²` added to a patch's SSD
+    /// (`n` pixels, `d_start` the flow the patch started from); 0 = none.
+    pub anchor: f32,
 }
 
 /// The first image of a level with its gradients (unpadded, row-major, `w x h`).
@@ -184,6 +187,8 @@ struct PatchModel {
     mgx: f32,
     mgy: f32,
     n: f32,
+    /// The flow the patch starts from (the anchor's centre).
+    start: [f32; 2],
 }
 
 impl PatchModel {
@@ -223,7 +228,13 @@ impl PatchModel {
         } else {
             [0.0; 3]
         };
-        Self { inv, mgx, mgy, n }
+        Self {
+            inv,
+            mgx,
+            mgy,
+            n,
+            start: [0.0; 2],
+        }
     }
 
     /// SSD at a displacement from its stats (mean-normalised when the model is).
@@ -247,6 +258,17 @@ impl PatchModel {
             self.inv[1] * bx + self.inv[2] * by,
         )
     }
+}
+
+/// The anchor penalty of a patch at flow `(u, v)`: `anchor · n · |(u, v) - start|²`, in the
+/// units of the SSD. On look-alike objects (a row of identical boxes) a shift by one
+/// object's width matches about as well as the true small motion; at the coarse levels,
+/// where a patch covers several objects and their texture is blurred away, a search or a
+/// neighbour's flow can land on such a copy, and the finer levels cannot undo it. The
+/// penalty makes a patch leave its starting flow only for a clearly better match.
+fn anchor_penalty(m: &PatchModel, anchor: f32, u: f32, v: f32) -> f32 {
+    let (du, dv) = (u - m.start[0], v - m.start[1]);
+    anchor * m.n * (du * du + dv * dv)
 }
 
 /// A neighbour's flow closer than this (pixels of the level) to a patch's own is not
@@ -273,7 +295,10 @@ struct State {
 impl<const N: usize> Ctx<'_, N> {
     fn eval(&self, m: &PatchModel, px: usize, py: usize, u: f32, v: f32) -> (State, Stats) {
         let st = stats::<N>(self.t, self.i1, (px, py), (u, v));
-        let ssd = m.ssd(&st, self.s.mean_normalization);
+        let mut ssd = m.ssd(&st, self.s.mean_normalization);
+        if self.s.anchor > 0.0 {
+            ssd += anchor_penalty(m, self.s.anchor, u, v);
+        }
         (State { u, v, ssd, r: st.r }, st)
     }
 
@@ -319,6 +344,9 @@ impl<const N: usize> Ctx<'_, N> {
 /// from (the coarser level's result, zero at the coarsest). Returns one [`PatchFlow`] per
 /// grid patch, row-major over `(ys, xs)`.
 ///
+/// With `s.anchor > 0` every SSD a patch compares carries [`anchor_penalty`] around the
+/// flow of `init` at its centre.
+///
 /// Each patch first descends from `init` at its centre, trying its left neighbour's result
 /// as well when propagation is on. With propagation, three more passes follow (downwards
 /// along columns, leftwards along rows, upwards along columns): a patch whose neighbour's
@@ -351,7 +379,11 @@ fn search_level_n<const N: usize>(
     let models: Vec<PatchModel> = ys
         .iter()
         .flat_map(|&py| xs.iter().map(move |&px| (px, py)))
-        .map(|(px, py)| PatchModel::new::<N>(t, px, py, mn))
+        .map(|(px, py)| {
+            let mut m = PatchModel::new::<N>(t, px, py, mn);
+            m.start = init[(py + size / 2) * t.w + px + size / 2];
+            m
+        })
         .collect();
     let mut state = vec![
         State {

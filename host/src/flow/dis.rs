@@ -626,6 +626,7 @@ mod tests {
         assert!(medium().estimate_gray(&b, &b).is_ok());
     }
 
+    #[cfg(feature = "sim")]
     /// Mean endpoint error of `flow` on each object of `labels` that moved more than 3 px
     /// (`exact` NaN where unknown), as `(label, EPE px)`.
     fn moved_object_epe(flow: &FlowImage, exact: &FlowImage, labels: &[u16]) -> Vec<(u16, f32)> {
@@ -645,6 +646,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "sim")]
     fn coarse_anchor_keeps_a_pushed_box_off_its_look_alike_neighbours() {
         use crate::rig::robot::PushCommand;
         use crate::sim::{Layout, SimConfig, SimScene, ground_truth_flow};

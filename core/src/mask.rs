@@ -1666,54 +1666,6 @@ mod tests {
         }
     }
 
-    /// Scratch of [`MaskScratchLen`] for one call.
-    struct ScratchBuf {
-        key: Vec<u32>,
-        source: Vec<u32>,
-        segment: Vec<u32>,
-        queue: Vec<u32>,
-        claim: Vec<u16>,
-        size: Vec<u32>,
-        target: Vec<u32>,
-        seg_key: Vec<u32>,
-        seeds: Vec<SegmentSeeds>,
-        motions: Vec<Pose>,
-    }
-
-    impl ScratchBuf {
-        fn new(len: MaskScratchLen) -> Self {
-            // Garbage, not zeros: correct_mask must not rely on what scratch holds.
-            let px = |fill: u32| vec![fill; len.pixels];
-            Self {
-                key: px(7),
-                source: px(9),
-                segment: px(3),
-                queue: px(5),
-                claim: vec![2; len.pixels],
-                size: vec![1; len.segments],
-                target: vec![4; len.segments],
-                seg_key: vec![6; len.segments],
-                seeds: vec![SegmentSeeds::default(); len.seeds],
-                motions: vec![Pose::identity(); len.motions],
-            }
-        }
-
-        fn view(&mut self) -> MaskScratch<'_> {
-            MaskScratch {
-                key: &mut self.key,
-                source: &mut self.source,
-                segment: &mut self.segment,
-                queue: &mut self.queue,
-                claim: &mut self.claim,
-                segment_size: &mut self.size,
-                segment_target: &mut self.target,
-                segment_key: &mut self.seg_key,
-                seeds: &mut self.seeds,
-                motions: &mut self.motions,
-            }
-        }
-    }
-
     proptest::proptest! {
         /// CorrectMask in the static foreground's window gives exactly what it gives over
         /// the whole image: random blocks of labels placed anywhere in the image, random
@@ -1721,7 +1673,7 @@ mod tests {
         /// from inside and outside the window, moving and still groups.
         #[test]
         fn the_foreground_window_changes_nothing(seed in proptest::prelude::any::<u64>()) {
-            use crate::{Intrinsics, Twist, group::GroupInfo, rng::Pcg32};
+            use crate::{Intrinsics, Twist, group::GroupInfo, rng::Pcg32, test_workspace::WorkspaceBuf};
             let mut rng = Pcg32::new(seed);
             let (w, h) = (8 + rng.below(40) as usize, 6 + rng.below(30) as usize);
             // A block of objects somewhere in the image, each with a 2x2-pixel grain.
@@ -1782,11 +1734,11 @@ mod tests {
             };
             let cfg = Config { min_segment_px: rng.below(4), min_group_frames: 1, ..Config::PAPER };
             let static_view = ImageView::packed(w, h, &static_t1).unwrap();
-            let len = MaskScratchLen::new(w, h, frames.len());
+            let (mut ws_a, mut ws_b) = (WorkspaceBuf::new(&cfg, w, h), WorkspaceBuf::new(&cfg, w, h));
             let (mut windowed, mut whole) = (vec![1u16; w * h], vec![2u16; w * h]);
-            let a = correct_mask(&input, &static_view, &groups, &cfg, &mut ScratchBuf::new(len).view(), &mut windowed);
+            let a = correct_mask(&input, &static_view, &groups, &cfg, &mut ws_a.view().mask, &mut windowed);
             let b = correct_mask_in(
-                Grid::whole(w, h), &input, &static_view, &groups, &cfg, &mut ScratchBuf::new(len).view(), &mut whole,
+                Grid::whole(w, h), &input, &static_view, &groups, &cfg, &mut ws_b.view().mask, &mut whole,
             );
             proptest::prop_assert_eq!(a, b);
             proptest::prop_assert_eq!(windowed, whole);

@@ -87,8 +87,9 @@ impl<'a> MotionInput<'a> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrameSample {
     px: [u32; 2],
-    label: u16,
-    tracked: bool,
+    /// The label, plus [`UNTRACKED`] if the flow lost the point: one compare tests both
+    /// in [`build_frame`]'s scan.
+    key: u32,
     px_t1: [Real; 2],
     p_t: Point3<Real>,
     p_t1: Point3<Real>,
@@ -98,12 +99,24 @@ impl FrameSample {
     /// An unused sample, for sizing scratch arrays (`[FrameSample::EMPTY; N]`).
     pub const EMPTY: Self = Self {
         px: [0, 0],
-        label: 0,
-        tracked: false,
+        key: UNTRACKED,
         px_t1: [0.0, 0.0],
         p_t: Point3::new(0.0, 0.0, 0.0),
         p_t1: Point3::new(0.0, 0.0, 0.0),
     };
+}
+
+/// Flag of [`FrameSample::key`]: the point has no position at `t+1`.
+const UNTRACKED: u32 = 1 << 16;
+
+impl FrameSample {
+    const fn label(&self) -> u16 {
+        self.key as u16
+    }
+
+    const fn tracked(&self) -> bool {
+        self.key & UNTRACKED == 0
+    }
 }
 
 impl Default for FrameSample {
@@ -206,7 +219,7 @@ pub fn create_frames(
 
     let mut count = 0;
     for (i, origin) in samples.iter().enumerate() {
-        if !origin.tracked {
+        if !origin.tracked() {
             continue;
         }
         let Some(frame) = build_frame(input, cfg, samples, i) else {
@@ -343,7 +356,7 @@ fn track(
 ) -> FrameSample {
     let mut sample = FrameSample {
         px: [x as u32, y as u32],
-        label,
+        key: u32::from(label) | UNTRACKED,
         p_t,
         ..FrameSample::EMPTY
     };
@@ -352,7 +365,7 @@ fn track(
     };
     let (u1, v1) = (x as Real + dx, y as Real + dy);
     if let Some(z1) = local_depth(&input.depth_t1, u1, v1, cfg) {
-        sample.tracked = true;
+        sample.key = u32::from(label);
         sample.px_t1 = [u1, v1];
         sample.p_t1 = input.intrinsics.back_project(u1, v1, z1);
     }
@@ -467,36 +480,94 @@ fn build_frame(
     let first = samples.partition_point(|s| i64::from(s.px[1]) < oy - reach_px);
     let last = samples.partition_point(|s| i64::from(s.px[1]) <= oy + reach_px);
     let window = samples.get(first..last)?;
-    // The column test first: it is the one that rules most samples of the window out.
-    let candidate = |s: &FrameSample| {
-        (i64::from(s.px[0]) - ox).abs() <= reach_px
-            && s.tracked
-            && s.label == o.label
-            && s.px != o.px
-    };
-    // The window is scanned twice (second and third point); list its candidates once when
-    // they fit on the stack, else scan it again.
-    let mut listed = [0u32; CANDIDATES_ON_STACK];
+    // Columns within reach as one unsigned range test: `x - x_lo <= x_span`.
+    let x_lo = (ox - reach_px).clamp(0, i64::from(u32::MAX)) as u32;
+    let x_span = ((ox + reach_px).clamp(0, i64::from(u32::MAX)) as u32).saturating_sub(x_lo);
+    let key = u32::from(o.label());
+    // Tracked, same label, columns within reach. (The origin itself passes: it is left
+    // out by its pixel in the passes that follow.)
+    let candidate = |s: &FrameSample| (s.px[0].wrapping_sub(x_lo) <= x_span) & (s.key == key);
+    if window.len() > WINDOW_ON_STACK {
+        return best_triangle(
+            o,
+            window.iter().filter(|s| candidate(s) && s.px != o.px),
+            cfg,
+        );
+    }
+    // The window's candidates, listed without a branch per sample (the column test is a
+    // coin flip for the branch predictor). `count <= k < WINDOW_ON_STACK`, so the mask
+    // never changes the index; it only spares a bounds check.
+    let mut listed = [0u16; WINDOW_ON_STACK];
     let mut count = 0;
     for (k, s) in window.iter().enumerate() {
-        if candidate(s) {
-            match listed.get_mut(count) {
-                Some(slot) => *slot = k as u32,
-                None => return best_triangle(o, window.iter().filter(|s| candidate(s)), cfg),
-            }
-            count += 1;
-        }
+        listed[count & (WINDOW_ON_STACK - 1)] = k as u16;
+        count += usize::from(candidate(s));
     }
-    let listed = listed.get(..count).unwrap_or(&[]);
-    best_triangle(
-        o,
-        listed.iter().filter_map(|&k| window.get(k as usize)),
-        cfg,
-    )
+    best_triangle_listed(o, window, listed.get_mut(..count).unwrap_or(&mut []), cfg)
 }
 
-/// Most candidates [`build_frame`] lists on the stack (4 bytes each).
-const CANDIDATES_ON_STACK: usize = 256;
+/// Largest window [`build_frame`] lists on the stack (6 bytes an entry); a larger one is
+/// scanned by [`best_triangle`] instead.
+const WINDOW_ON_STACK: usize = 512;
+const _: () = assert!(WINDOW_ON_STACK.is_power_of_two() && WINDOW_ON_STACK <= 1 << 16);
+
+/// [`best_triangle`] over `window[k]` for `k` in `listed` (in that order), bit for bit:
+/// one pass finds the second point and keeps the candidates within the side limits with
+/// their distance from the origin, the other looks for the third point among those only.
+/// `listed` is overwritten.
+fn best_triangle_listed(
+    o: &FrameSample,
+    window: &[FrameSample],
+    listed: &mut [u16],
+    cfg: &Config,
+) -> Option<BodyFrame> {
+    let (min_side, max_side) = (cfg.frame_min_side_m, cfg.frame_max_side_m);
+    let mut dist = [0.0 as Real; WINDOW_ON_STACK];
+    let mut near = 0;
+    let mut best_j: Option<(usize, Real)> = None;
+    for at in 0..listed.len() {
+        let Some(&k) = listed.get(at) else { break };
+        let Some(s) = window.get(usize::from(k)) else {
+            continue;
+        };
+        if s.px == o.px {
+            continue;
+        }
+        let d = (s.p_t - o.p_t).norm();
+        let keep = d >= min_side && d <= max_side;
+        if let (Some(slot), Some(slot_d)) = (listed.get_mut(near), dist.get_mut(near)) {
+            *slot = k;
+            *slot_d = d;
+        }
+        if keep && best_j.is_none_or(|(_, bd)| d > bd) {
+            best_j = Some((near, d));
+        }
+        near += usize::from(keep);
+    }
+    let (j_at, dj) = best_j?;
+    let j = window.get(usize::from(*listed.get(j_at)?))?;
+    let a = j.p_t - o.p_t;
+    let mut best_k: Option<(&FrameSample, Real)> = None;
+    for (&k, &db) in listed.iter().zip(dist.iter()).take(near) {
+        let Some(s) = window.get(usize::from(k)) else {
+            continue;
+        };
+        if s.px == j.px {
+            continue;
+        }
+        let djk = (s.p_t - j.p_t).norm();
+        if djk < min_side || djk > max_side {
+            continue;
+        }
+        let b = s.p_t - o.p_t;
+        let area = a.cross(&b).norm();
+        if area >= cfg.frame_min_sin * dj * db && best_k.is_none_or(|(_, ba)| area > ba) {
+            best_k = Some((s, area));
+        }
+    }
+    let (kk, _) = best_k?;
+    rigid_frame(o, j, kk, cfg)
+}
 
 /// The frame on origin `o` and the best two of `candidates` (samples of its segment near
 /// it), or `None` if no good triangle exists.
@@ -530,6 +601,17 @@ fn best_triangle<'s>(
         }
     }
     let (kk, _) = best_k?;
+    rigid_frame(o, j, kk, cfg)
+}
+
+/// The frame on `o`, `j`, `kk` if no side changes length by [`Config::frame_rigid_tol_m`]
+/// or more from `t` to `t+1`.
+fn rigid_frame(
+    o: &FrameSample,
+    j: &FrameSample,
+    kk: &FrameSample,
+    cfg: &Config,
+) -> Option<BodyFrame> {
     let pts = [o, j, kk];
     for (p, q) in [(0, 1), (0, 2), (1, 2)] {
         let before = (pts[p].p_t - pts[q].p_t).norm();
@@ -546,7 +628,7 @@ fn best_triangle<'s>(
         px_t1: [o.px_t1, j.px_t1, kk.px_t1],
         p_t: [o.p_t, j.p_t, kk.p_t],
         p_t1: [o.p_t1, j.p_t1, kk.p_t1],
-        label: o.label,
+        label: o.label(),
     })
 }
 
@@ -708,6 +790,89 @@ mod tests {
             .err(),
             Some(Error::SizeMismatch)
         );
+    }
+
+    /// [`build_frame`] as it was before the listed fast path: every sample of the row
+    /// window that passes the candidate test, straight into [`best_triangle`].
+    fn build_frame_plain(
+        input: &MotionInput<'_>,
+        cfg: &Config,
+        samples: &[FrameSample],
+        i: usize,
+    ) -> Option<BodyFrame> {
+        let o = samples.get(i)?;
+        let k = &input.intrinsics;
+        let max_side = cfg.frame_max_side_m;
+        let near_z = (o.p_t.z - max_side).max(1e-3);
+        let reach = max_side * k.fx.max(k.fy) / near_z + 1.0;
+        let reach_px = if reach.is_finite() && reach < 1e6 {
+            reach as i64
+        } else {
+            i64::MAX / 4
+        };
+        let (ox, oy) = (i64::from(o.px[0]), i64::from(o.px[1]));
+        let first = samples.partition_point(|s| i64::from(s.px[1]) < oy - reach_px);
+        let last = samples.partition_point(|s| i64::from(s.px[1]) <= oy + reach_px);
+        let candidate = |s: &&FrameSample| {
+            (i64::from(s.px[0]) - ox).abs() <= reach_px
+                && s.tracked()
+                && s.label() == o.label()
+                && s.px != o.px
+        };
+        best_triangle(o, samples[first..last].iter().filter(candidate), cfg)
+    }
+
+    proptest::proptest! {
+        /// The listed fast path of [`build_frame`] (and its fallback past
+        /// [`WINDOW_ON_STACK`]) picks the frame the plain scan picks, bit for bit. Points
+        /// sit on a coarse lattice so that equal distances and areas (ties) are common.
+        #[test]
+        fn build_frame_picks_what_the_plain_scan_picks(
+            cells in proptest::collection::vec(
+                (0u32..40, 0u32..40, 1u16..3, proptest::bool::weighted(0.9), 0u8..4),
+                3..700,
+            ),
+            step_m in proptest::sample::select(vec![0.002f32, 0.004, 0.01]),
+        ) {
+            let mut cells = cells;
+            cells.sort_by_key(|c| (c.1, c.0));
+            cells.dedup_by_key(|c| (c.1, c.0));
+            let samples: std::vec::Vec<FrameSample> = cells
+                .iter()
+                .map(|&(x, y, label, tracked, dz)| {
+                    let p_t = Point3::new(
+                        x as Real * step_m,
+                        y as Real * step_m,
+                        0.5 + Real::from(dz) * step_m,
+                    );
+                    FrameSample {
+                        px: [x * 3, y * 3],
+                        key: u32::from(label) | if tracked { 0 } else { UNTRACKED },
+                        px_t1: [0.0; 2],
+                        p_t,
+                        p_t1: p_t + Vector3::new(0.001, 0.0, 0.0),
+                    }
+                })
+                .collect();
+            let depth = [0.5f32];
+            let (labels, flow) = ([1u16], [[0.0f32; 2]]);
+            let input = MotionInput::new(
+                ImageView::packed(1, 1, &labels).unwrap(),
+                ImageView::packed(1, 1, &depth).unwrap(),
+                ImageView::packed(1, 1, &depth).unwrap(),
+                ImageView::packed(1, 1, &flow).unwrap(),
+                Intrinsics::new(100.0, 100.0, 0.5, 0.5).unwrap(),
+            )
+            .unwrap();
+            let cfg = Config::PAPER;
+            for i in 0..samples.len() {
+                proptest::prop_assert_eq!(
+                    build_frame(&input, &cfg, &samples, i),
+                    build_frame_plain(&input, &cfg, &samples, i),
+                    "origin {}", i
+                );
+            }
+        }
     }
 
     proptest::proptest! {

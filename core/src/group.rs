@@ -25,10 +25,12 @@
 //! Cost: three passes over the `n(n−1)/2` pairs; the first computes distances and stores
 //! each pair's KDE bin in one byte, the other two read bins only.
 
+use wide::f32x4;
+
 use crate::{
     Config, Error, Twist,
     error::{Buffer, check_len},
-    math::{Real, exp},
+    math::{Real, exp, sqrt},
     union_find::{find, union},
 };
 
@@ -71,6 +73,9 @@ pub struct GroupScratch<'a> {
     pub links: &'a mut [u32],
     /// Quick-shift parent of each frame, then its group root; `n` entries.
     pub attach: &'a mut [u32],
+    /// The twists' six components, component by component (`w.x` of every frame, then
+    /// `w.y`, …), so that pass 1 loads four frames' components at once; `6n` entries.
+    pub twist_lanes: &'a mut [Real],
 }
 
 /// Element counts [`GroupScratch`] needs; `const` so bare-metal callers can size `static`s.
@@ -81,6 +86,8 @@ pub struct GroupScratchLen {
     /// Length of [`GroupScratch::parent`], [`GroupScratch::links`] and
     /// [`GroupScratch::attach`].
     pub per_frame: usize,
+    /// Length of [`GroupScratch::twist_lanes`]: six per frame.
+    pub twist_lanes: usize,
 }
 
 impl GroupScratchLen {
@@ -99,16 +106,18 @@ impl GroupScratchLen {
         Self {
             pair_bin,
             per_frame: n,
+            twist_lanes: n.saturating_mul(TWIST_LANES),
         }
     }
 
     /// Bytes the scratch takes (saturating): `pair_bin` bytes, then `parent`, `links` and
-    /// `attach` of `per_frame` `u32`s each.
+    /// `attach` of `per_frame` `u32`s each, then the `twist_lanes`.
     #[must_use]
     pub const fn bytes(&self) -> usize {
         self.pair_bin
             .saturating_mul(size_of::<u8>())
             .saturating_add(self.per_frame.saturating_mul(3 * size_of::<u32>()))
+            .saturating_add(self.twist_lanes.saturating_mul(size_of::<Real>()))
     }
 }
 
@@ -153,6 +162,11 @@ pub fn group_frames(
     check_len(Buffer::FrameScratch, n, scratch.parent.len())?;
     check_len(Buffer::FrameScratch, n, scratch.links.len())?;
     check_len(Buffer::FrameScratch, n, scratch.attach.len())?;
+    check_len(
+        Buffer::FrameScratch,
+        need.twist_lanes,
+        scratch.twist_lanes.len(),
+    )?;
     check_len(Buffer::Frames, n, frame_group.len())?;
     check_len(Buffer::Groups, n, groups.len())?;
     let pair_bin = &mut scratch.pair_bin[..need.pair_bin];
@@ -171,34 +185,20 @@ pub fn group_frames(
     }
     let bin_width = cfg.kde_range_m / KDE_BINS as Real;
     let bins_per_m = 1.0 / bin_width;
-    let mut hist = [[0u32; KDE_BINS]; 2];
-    let mut rows = pair_bin.iter_mut();
-    for (i, ((ti, li), &mi)) in twists.iter().zip(labels).zip(links.iter()).enumerate() {
-        let rest = twists.iter().zip(labels).zip(links.iter()).skip(i + 1);
-        for (((tj, lj), &mj), slot) in rest.zip(rows.by_ref()) {
-            let across = li != lj;
-            // Across segments only pairs of moving frames are data.
-            *slot = if across && (mi & mj) == 0 {
-                NO_PAIR
-            } else {
-                // NaN fails the comparison and lands in the last bin.
-                let b = ti.distance(tj, scale) * bins_per_m;
-                let b = if b < KDE_BINS as Real {
-                    b as u8
-                } else {
-                    KDE_BINS as u8 - 1
-                };
-                b | if across { ACROSS } else { 0 }
-            };
-        }
+    let lanes = fill_lanes(twists, &mut scratch.twist_lanes[..need.twist_lanes]);
+    for (i, row) in pair_rows_mut(n, pair_bin) {
+        pair_codes(&lanes, i, (labels, links), (scale, bins_per_m), row);
     }
+    // Histograms (index 0: inside one segment, 1: across), counted per code first.
+    let mut per_code = [0u32; 256];
     for &code in pair_bin.iter() {
-        if code != NO_PAIR
-            && let Some(h) =
-                hist[usize::from(code & ACROSS != 0)].get_mut(usize::from(code & !ACROSS))
-        {
-            *h += 1;
-        }
+        per_code[usize::from(code)] += 1;
+    }
+    let mut hist = [[0u32; KDE_BINS]; 2];
+    let [inside, across] = &mut hist;
+    for (b, (inside, across)) in inside.iter_mut().zip(across.iter_mut()).enumerate() {
+        *inside = per_code.get(b).copied().unwrap_or(0);
+        *across = per_code.get(b | usize::from(ACROSS)).copied().unwrap_or(0);
     }
 
     let (posterior, split) = posterior_table(&hist, cfg);
@@ -438,6 +438,117 @@ fn set_twist(g: &mut GroupInfo, twist: Twist, cfg: &Config) {
 
 const NONE: u32 = u32::MAX;
 
+/// Components of a twist: `w.x, w.y, w.z, v.x, v.y, v.z`.
+const TWIST_LANES: usize = 6;
+
+/// Writes the components of `twists` into `lanes` component by component
+/// ([`GroupScratch::twist_lanes`]; `6·twists.len()` entries) and returns the six lanes.
+fn fill_lanes<'a>(twists: &[Twist], lanes: &'a mut [Real]) -> [&'a [Real]; TWIST_LANES] {
+    let n = twists.len();
+    for (c, lane) in lanes.chunks_exact_mut(n.max(1)).enumerate() {
+        for (x, t) in lane.iter_mut().zip(twists) {
+            *x = if c < 3 { t.w[c % 3] } else { t.v[c % 3] };
+        }
+    }
+    let lanes: &'a [Real] = lanes;
+    core::array::from_fn(|c| lanes.get(c * n..(c + 1) * n).unwrap_or(&[]))
+}
+
+/// The pair code of a pair at twist distance `d` (metres): its KDE bin, flagged
+/// [`ACROSS`] for a pair across segments, or [`NO_PAIR`].
+#[inline]
+fn pair_code(d: Real, bins_per_m: Real, across: bool, both_moving: bool) -> u8 {
+    // Across segments only pairs of moving frames are data.
+    if across && !both_moving {
+        return NO_PAIR;
+    }
+    // NaN fails the comparison and lands in the last bin.
+    let b = d * bins_per_m;
+    let b = if b < KDE_BINS as Real {
+        b as u8
+    } else {
+        KDE_BINS as u8 - 1
+    };
+    b | if across { ACROSS } else { 0 }
+}
+
+/// The squared distances [`Twist::distance`] takes the root of, from one twist (`ti`,
+/// its components splat) to four (`tj`, component by component): the same operations in
+/// the same order, `v.norm_squared() + L·L·w.norm_squared()` with nalgebra's
+/// `(x² + y²) + z²`, one lane per pair.
+#[inline]
+fn four_distances_squared(
+    ti: &[f32x4; TWIST_LANES],
+    tj: [&[Real; 4]; TWIST_LANES],
+    scale2: f32x4,
+) -> [Real; 4] {
+    let [tw0, tw1, tw2, tv0, tv1, tv2] = *ti;
+    let [w0, w1, w2, v0, v1, v2] = tj;
+    let d = [
+        tw0 - f32x4::new(*w0),
+        tw1 - f32x4::new(*w1),
+        tw2 - f32x4::new(*w2),
+        tv0 - f32x4::new(*v0),
+        tv1 - f32x4::new(*v1),
+        tv2 - f32x4::new(*v2),
+    ];
+    let w2 = (d[0] * d[0] + d[1] * d[1]) + d[2] * d[2];
+    let v2 = (d[3] * d[3] + d[4] * d[4]) + d[5] * d[5];
+    (v2 + scale2 * w2).to_array()
+}
+
+/// Pass 1 for frame `i`: writes the codes of its pairs with frames `i + 1..` into `row`
+/// (`n − i − 1` entries), four frames at a time. Bit for bit what [`Twist::distance`]
+/// gives pair by pair: the same operations in the same order, one lane per pair.
+fn pair_codes(
+    lanes: &[&[Real]; TWIST_LANES],
+    i: usize,
+    (labels, moving): (&[u16], &[u32]),
+    (scale, bins_per_m): (Real, Real),
+    row: &mut [u8],
+) {
+    let at = |c: usize| lanes.get(c).and_then(|l| l.get(i)).copied().unwrap_or(0.0);
+    let ti: [Real; TWIST_LANES] = core::array::from_fn(at);
+    let (li, mi) = (
+        labels.get(i).copied().unwrap_or(0),
+        moving.get(i).copied().unwrap_or(0),
+    );
+    let from = i + 1;
+    let code = |d: Real, lj: u16, mj: u32| pair_code(d, bins_per_m, li != lj, (mi & mj) != 0);
+    let scale2 = scale * scale;
+    let ti4 = ti.map(f32x4::splat);
+    let scale2_4 = f32x4::splat(scale2);
+    let tail = |l: usize| lanes.get(l).and_then(|x| x.get(from..)).unwrap_or(&[]);
+    let fours: [&[[Real; 4]]; TWIST_LANES] = core::array::from_fn(|l| tail(l).as_chunks::<4>().0);
+    let (labels4, _) = labels.get(from..).unwrap_or(&[]).as_chunks::<4>();
+    let (moving4, _) = moving.get(from..).unwrap_or(&[]).as_chunks::<4>();
+    let (row4, rest) = row.as_chunks_mut::<4>();
+    let done = row4.len() * 4;
+    let [w0, w1, w2, v0, v1, v2] = fours;
+    let tj4 = w0.iter().zip(w1).zip(w2).zip(v0).zip(v1).zip(v2);
+    for (((out, lj), mj), tj) in row4.iter_mut().zip(labels4).zip(moving4).zip(tj4) {
+        let (((((w0, w1), w2), v0), v1), v2) = tj;
+        let tj = [w0, w1, w2, v0, v1, v2];
+        let norm2 = four_distances_squared(&ti4, tj, scale2_4);
+        for k in 0..4 {
+            out[k] = code(sqrt(norm2[k]), lj[k], mj[k]);
+        }
+    }
+    for (k, slot) in rest.iter_mut().enumerate() {
+        let j = from + done + k;
+        let tj: [Real; TWIST_LANES] =
+            core::array::from_fn(|l| lanes.get(l).and_then(|x| x.get(j)).copied().unwrap_or(0.0));
+        let d: [Real; TWIST_LANES] = core::array::from_fn(|l| ti[l] - tj[l]);
+        let w2 = (d[0] * d[0] + d[1] * d[1]) + d[2] * d[2];
+        let v2 = (d[3] * d[3] + d[4] * d[4]) + d[5] * d[5];
+        let (lj, mj) = (
+            labels.get(j).copied().unwrap_or(0),
+            moving.get(j).copied().unwrap_or(0),
+        );
+        *slot = code(sqrt(v2 + scale2 * w2), lj, mj);
+    }
+}
+
 fn bump(counts: &mut [u32], i: usize) {
     if let Some(c) = counts.get_mut(i) {
         *c = c.saturating_add(1);
@@ -450,6 +561,17 @@ fn pair_rows(n: usize, pair_bin: &[u8]) -> impl Iterator<Item = (usize, &[u8])> 
         let len = n - i - 1;
         let row = pair_bin.get(*start..*start + len)?;
         *start += len;
+        Some((i, row))
+    })
+}
+
+/// [`pair_rows`], writable.
+fn pair_rows_mut(n: usize, pair_bin: &mut [u8]) -> impl Iterator<Item = (usize, &mut [u8])> {
+    let mut rest = pair_bin;
+    (0..n).map_while(move |i| {
+        let len = n - i - 1;
+        let (row, tail) = core::mem::take(&mut rest).split_at_mut_checked(len)?;
+        rest = tail;
         Some((i, row))
     })
 }
@@ -696,6 +818,7 @@ mod tests {
             parent: &mut parent,
             links: &mut links,
             attach: &mut attach,
+            twist_lanes: &mut vec![0.0; len.twist_lanes],
         };
         let g = group_frames(
             &twists,
@@ -817,6 +940,90 @@ mod tests {
         assert!(seen.windows(2).all(|w| (w[0].0, w[0].1) < (w[1].0, w[1].1)));
     }
 
+    /// A twist component: ordinary, zero, huge or not a number.
+    fn component() -> impl proptest::strategy::Strategy<Value = Real> {
+        use proptest::prelude::*;
+        prop_oneof![
+            6 => -0.05f32..0.05,
+            1 => Just(0.0),
+            1 => Just(1e20),
+            1 => Just(Real::NAN),
+            1 => (0u8..4).prop_map(|k| Real::from(k) * 1e-3),
+        ]
+    }
+
+    proptest::proptest! {
+        /// Pass 1's four-at-a-time codes equal the codes of the plain pair-by-pair
+        /// computation ([`Twist::distance`]), bit for bit, for every row length (the
+        /// remainder of each row is done one pair at a time).
+        #[test]
+        fn pass_one_codes_equal_the_pair_by_pair_codes(
+            frames in proptest::collection::vec(
+                (proptest::array::uniform6(component()), 0u16..3),
+                1..40,
+            ),
+            scale in proptest::sample::select(vec![0.05f32, 1.0]),
+        ) {
+            let n = frames.len();
+            let twists: Vec<Twist> = frames
+                .iter()
+                .map(|(c, _)| Twist {
+                    w: Vector3::new(c[0], c[1], c[2]),
+                    v: Vector3::new(c[3], c[4], c[5]),
+                })
+                .collect();
+            let labels: Vec<u16> = frames.iter().map(|f| f.1).collect();
+            let floor2 = Config::PAPER.static_below_m * Config::PAPER.static_below_m;
+            let moving: Vec<u32> = twists
+                .iter()
+                .map(|t| u32::from(t.norm_squared(scale) >= floor2))
+                .collect();
+            let bins_per_m = KDE_BINS as Real / Config::PAPER.kde_range_m;
+            let mut lanes_buf = vec![0.0; TWIST_LANES * n];
+            let lanes = fill_lanes(&twists, &mut lanes_buf);
+            let mut pair_bin = vec![0u8; GroupScratchLen::for_frames(n).pair_bin];
+            for (i, row) in pair_rows_mut(n, &mut pair_bin) {
+                pair_codes(&lanes, i, (&labels, &moving), (scale, bins_per_m), row);
+            }
+            let mut expected = Vec::new();
+            for i in 0..n {
+                for j in i + 1..n {
+                    let across = labels[i] != labels[j];
+                    expected.push(if across && (moving[i] & moving[j]) == 0 {
+                        NO_PAIR
+                    } else {
+                        let b = twists[i].distance(&twists[j], scale) * bins_per_m;
+                        let b = if b < KDE_BINS as Real { b as u8 } else { KDE_BINS as u8 - 1 };
+                        b | if across { ACROSS } else { 0 }
+                    });
+                }
+            }
+            proptest::prop_assert_eq!(pair_bin, expected);
+            // And the distances themselves, bit for bit, four frames at a time.
+            for i in 0..n {
+                for j0 in (0..n.saturating_sub(3)).step_by(4) {
+                    let tj: [[Real; 4]; TWIST_LANES] =
+                        core::array::from_fn(|l| core::array::from_fn(|k| lanes[l][j0 + k]));
+                    let ti: [f32x4; TWIST_LANES] =
+                        core::array::from_fn(|l| f32x4::splat(lanes[l][i]));
+                    let d2 = four_distances_squared(
+                        &ti,
+                        core::array::from_fn(|l| &tj[l]),
+                        f32x4::splat(scale * scale),
+                    );
+                    for k in 0..4 {
+                        let got = sqrt(d2[k]);
+                        let want = twists[i].distance(&twists[j0 + k], scale);
+                        proptest::prop_assert!(
+                            got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                            "{} {}: {} vs {}", i, j0 + k, got, want
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn short_scratch_is_an_error() {
         let twists = [Twist::ZERO; 4];
@@ -827,6 +1034,7 @@ mod tests {
             parent: &mut a,
             links: &mut b,
             attach: &mut c,
+            twist_lanes: &mut [0.0; 24],
         };
         let r = group_frames(
             &twists,

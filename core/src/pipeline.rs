@@ -59,6 +59,11 @@ impl Workspace<'_> {
         for l in [g.parent.len(), g.links.len(), g.attach.len()] {
             check_len(Buffer::FrameScratch, len.group.per_frame, l)?;
         }
+        check_len(
+            Buffer::FrameScratch,
+            len.group.twist_lanes,
+            g.twist_lanes.len(),
+        )?;
         let m = &self.mask;
         let px = len.mask.pixels;
         for l in [m.key.len(), m.source.len(), m.segment.len(), m.claim.len()] {

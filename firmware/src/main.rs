@@ -124,6 +124,7 @@ fn main() -> ! {
     static mut PARENT: [u32; LEN.group.per_frame] = [0; LEN.group.per_frame];
     static mut LINKS: [u32; LEN.group.per_frame] = [0; LEN.group.per_frame];
     static mut ATTACH: [u32; LEN.group.per_frame] = [0; LEN.group.per_frame];
+    static mut TWIST_LANES: [f32; LEN.group.twist_lanes] = [0.0; LEN.group.twist_lanes];
     static mut KEY: [u32; LEN.mask.pixels] = [0; LEN.mask.pixels];
     static mut SOURCE: [u32; LEN.mask.pixels] = [0; LEN.mask.pixels];
     static mut SEGMENT: [u32; LEN.mask.pixels] = [0; LEN.mask.pixels];
@@ -176,6 +177,7 @@ fn main() -> ! {
             parent: PARENT,
             links: LINKS,
             attach: ATTACH,
+            twist_lanes: TWIST_LANES,
         },
         mask: MaskScratch {
             key: KEY,

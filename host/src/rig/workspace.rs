@@ -29,6 +29,7 @@ pub struct WorkspaceBuf {
     parent: Vec<u32>,
     links: Vec<u32>,
     attach: Vec<u32>,
+    twist_lanes: Vec<Real>,
     key: Vec<u32>,
     source: Vec<u32>,
     segment: Vec<u32>,
@@ -59,6 +60,7 @@ impl WorkspaceBuf {
             parent: vec![0; len.group.per_frame],
             links: vec![0; len.group.per_frame],
             attach: vec![0; len.group.per_frame],
+            twist_lanes: vec![0.0; len.group.twist_lanes],
             key: vec![0; px],
             source: vec![0; px],
             segment: vec![0; px],
@@ -92,6 +94,7 @@ impl WorkspaceBuf {
                 parent: &mut self.parent,
                 links: &mut self.links,
                 attach: &mut self.attach,
+                twist_lanes: &mut self.twist_lanes,
             },
             mask: MaskScratch {
                 key: &mut self.key,

@@ -75,6 +75,8 @@ pub struct GroupScratch<'a> {
     pub attach: &'a mut [u32],
     /// The twists' six components, component by component (`w.x` of every frame, then
     /// `w.y`, …), so that pass 1 loads four frames' components at once; `6n` entries.
+    /// [`crate::pipeline::update_mask`] lends it to [`crate::split::split_mixed_groups`]
+    /// afterwards.
     pub twist_lanes: &'a mut [Real],
 }
 
@@ -440,6 +442,8 @@ const NONE: u32 = u32::MAX;
 
 /// Components of a twist: `w.x, w.y, w.z, v.x, v.y, v.z`.
 const TWIST_LANES: usize = 6;
+// The pipeline lends the lanes to `split_mixed_groups` as its `misses` scratch.
+const _: () = assert!(crate::split::MISS_SCRATCH_PER_FRAME <= TWIST_LANES);
 
 /// Writes the components of `twists` into `lanes` component by component
 /// ([`GroupScratch::twist_lanes`]; `6·twists.len()` entries) and returns the six lanes.

@@ -207,7 +207,7 @@ pub fn update_mask_observed(
         frame_group,
         ws.groups,
         twist_groups,
-        ws.group.parent,
+        (&mut *ws.group.parent, &mut *ws.group.twist_lanes),
     );
     grouping.mixed_splits = grouping.count.saturating_sub(twist_groups);
     on_stage(Stage::Grouping);

@@ -60,9 +60,13 @@ pub const MIN_COHERENCE: Real = 0.8;
 pub const NEIGHBOURS: usize = 4;
 /// Neighbours a frame's miss is averaged with before the first split.
 const SMOOTH_NEIGHBOURS: usize = 8;
+/// Entries of [`split_mixed_groups`]' `misses` scratch per frame: a frame's miss and its
+/// smoothed miss, three components each.
+pub const MISS_SCRATCH_PER_FRAME: usize = 6;
 
 /// Splits the groups `groups[..count]` of `frames` (module docs), appending new groups
-/// after `count` while `groups` has room; `side` is scratch with one entry per frame.
+/// after `count` while `groups` has room; `side` is scratch with one entry per frame and
+/// `misses` with [`MISS_SCRATCH_PER_FRAME`] (frames past either are left out).
 /// Returns the new group count.
 pub fn split_mixed_groups(
     frames: &[BodyFrame],
@@ -71,20 +75,27 @@ pub fn split_mixed_groups(
     frame_group: &mut [u16],
     groups: &mut [GroupInfo],
     count: usize,
-    side: &mut [u32],
+    (side, misses): (&mut [u32], &mut [Real]),
 ) -> usize {
-    let n = frames.len().min(frame_group.len()).min(side.len());
-    let (frames, frame_group, side) = (
+    let n = frames
+        .len()
+        .min(frame_group.len())
+        .min(side.len())
+        .min(misses.len() / MISS_SCRATCH_PER_FRAME);
+    let (frames, frame_group, side, misses) = (
         frames.get(..n).unwrap_or(&[]),
         frame_group.get_mut(..n).unwrap_or(&mut []),
         side.get_mut(..n).unwrap_or(&mut []),
+        misses
+            .get_mut(..n * MISS_SCRATCH_PER_FRAME)
+            .unwrap_or(&mut []),
     );
     let capacity = groups.len().min(usize::from(NO_GROUP));
     let mut count = count.min(capacity);
     let mut g = 0;
     while g < count {
         if count < capacity
-            && let Some(new) = split_one(frames, cfg, frame_group, side, g)
+            && let Some(new) = split_one(frames, cfg, frame_group, (side, &mut *misses), g)
         {
             let new_id = count as u16;
             for (fg, &s) in frame_group.iter_mut().zip(side.iter()) {
@@ -177,7 +188,7 @@ fn split_one(
     frames: &[BodyFrame],
     cfg: &Config,
     frame_group: &[u16],
-    side: &mut [u32],
+    (side, misses): (&mut [u32], &mut [Real]),
     g: usize,
 ) -> Option<Split> {
     let is_member = |i: usize| frame_group.get(i).is_some_and(|&fg| usize::from(fg) == g);
@@ -204,20 +215,31 @@ fn split_one(
     };
     // Principal axis of the misses, each averaged with its frame's nearest neighbours
     // (one frame's miss is mostly depth noise, a neighbourhood's is its body's): the
-    // first part is the frames on its positive side.
-    let smoothed = |i: usize, f: &BodyFrame| {
-        let near = nearest::<SMOOTH_NEIGHBOURS>(frames, &is_member, i);
-        let (sum, n) = near
-            .iter()
-            .filter_map(|&(_, j)| frames.get(j))
-            .fold((miss(&one, f), 1.0), |(sum, n), fj| {
-                (sum + miss(&one, fj), n + 1.0)
-            });
-        sum / n
+    // first part is the frames on its positive side. Each member's miss and smoothed
+    // miss are computed once, into `misses` (the raw ones, then the smoothed ones).
+    let (raw, smooth) = misses.split_at_mut(misses.len() / 2);
+    let stored = |misses: &[Real], i: usize| {
+        let m = misses.get(3 * i..3 * i + 3)?;
+        Some(Vector3::new(*m.first()?, *m.get(1)?, *m.get(2)?))
     };
+    let store = |misses: &mut [Real], i: usize, e: Vector3<Real>| {
+        if let Some(m) = misses.get_mut(3 * i..3 * i + 3) {
+            m.copy_from_slice(e.as_slice());
+        }
+    };
+    for (i, f) in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
+        store(raw, i, miss(&one, f));
+    }
     let (mut sum, mut outer, mut total_miss) = (Vector3::zeros(), Matrix3::zeros(), 0.0);
     for (i, f) in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
-        let e = smoothed(i, f);
+        let near = nearest::<SMOOTH_NEIGHBOURS>(frames, &is_member, i);
+        let own = stored(raw, i).unwrap_or_else(|| miss(&one, f));
+        let (sum_near, n) = near
+            .iter()
+            .filter_map(|&(_, j)| stored(raw, j))
+            .fold((own, 1.0), |(sum, n), e| (sum + e, n + 1.0));
+        let e = sum_near / n;
+        store(smooth, i, e);
         sum += e;
         outer += e * e.transpose();
         total_miss += frame_miss(&one, f);
@@ -226,8 +248,10 @@ fn split_one(
     let mean = sum / count;
     let cov = outer / count - mean * mean.transpose();
     let axis = principal_axis(&cov)?;
-    for (i, (s, f)) in side.iter_mut().zip(frames).enumerate() {
-        *s = u32::from(is_member(i) && (smoothed(i, f) - mean).dot(&axis) > 0.0);
+    for (i, s) in side.iter_mut().enumerate() {
+        *s = u32::from(
+            is_member(i) && stored(smooth, i).is_some_and(|e| (e - mean).dot(&axis) > 0.0),
+        );
     }
     let mut fits = (one, one);
     for _ in 0..MAX_ROUNDS {
@@ -492,6 +516,7 @@ mod tests {
         let mut groups = [GroupInfo::default(); 8];
         groups[0] = first;
         let mut side = [0u32; 200];
+        let mut misses = [0.0; 200 * MISS_SCRATCH_PER_FRAME];
         let count = split_mixed_groups(
             frames,
             &Point3::new(0.0, 0.0, 0.6),
@@ -499,7 +524,7 @@ mod tests {
             &mut frame_group[..frames.len()],
             &mut groups[..capacity],
             1,
-            &mut side,
+            (&mut side, &mut misses),
         );
         (count, frame_group, groups)
     }
@@ -554,6 +579,40 @@ mod tests {
         assert!(pure(a) >= 78 && pure(b) >= 78, "{a:?} {b:?}");
         assert!(groups[0].moving && groups[1].moving);
         assert_eq!(groups[0].frames + groups[1].frames, 160);
+    }
+
+    /// The `misses` scratch is written before it is read: what a caller left in it (here
+    /// NaN, zero or huge) never changes the split.
+    #[test]
+    fn leftovers_in_the_miss_scratch_do_not_matter() {
+        let (frames, _) = two_boxes([push(0.02, 0.0), push(0.02, 5.0)], 0.0015, 80);
+        let frames = &frames[..160];
+        let first = GroupInfo {
+            frames: 160,
+            moving: true,
+            label: 1,
+            ..GroupInfo::default()
+        };
+        let mut results = std::vec::Vec::new();
+        for junk in [0.0, Real::NAN, 1e30] {
+            let mut frame_group = [0u16; 160];
+            let mut groups = [GroupInfo::default(); 8];
+            groups[0] = first;
+            let mut side = [7u32; 160];
+            let mut misses = [junk; 160 * MISS_SCRATCH_PER_FRAME];
+            let count = split_mixed_groups(
+                frames,
+                &Point3::new(0.0, 0.0, 0.6),
+                &Config::PAPER,
+                &mut frame_group,
+                &mut groups,
+                1,
+                (&mut side, &mut misses),
+            );
+            results.push((count, frame_group, groups));
+        }
+        assert_eq!(results[0].0, 2);
+        assert!(results.windows(2).all(|w| w[0] == w[1]));
     }
 
     #[test]

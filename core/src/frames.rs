@@ -511,6 +511,25 @@ fn build_frame(
 const WINDOW_ON_STACK: usize = 512;
 const _: () = assert!(WINDOW_ON_STACK.is_power_of_two() && WINDOW_ON_STACK <= 1 << 16);
 
+/// Relative slack on the bound `|a|·|b|` of a triangle's doubled area `|a × b|` in
+/// [`best_triangle_listed`]: far above the few units in the last place by which the
+/// rounded cross product's norm can exceed the rounded product of the norms.
+const AREA_BOUND_SLACK: Real = 1.001;
+/// Smallest side and bound [`best_triangle_listed`] prunes with: below it, rounding
+/// near the subnormals is no longer relative, and every candidate is computed.
+const AREA_BOUND_MIN: Real = 1e-15;
+/// Largest bound [`best_triangle_listed`] prunes with: above it, the squares inside the
+/// norms could overflow.
+const AREA_BOUND_MAX: Real = 1e18;
+
+/// Whether sides `dj`, `db` are in the range where [`AREA_BOUND_SLACK`] bounds the
+/// rounded `|a × b|`.
+fn prunable(dj: Real, db: Real) -> bool {
+    dj >= AREA_BOUND_MIN
+        && db >= AREA_BOUND_MIN
+        && (AREA_BOUND_MIN..=AREA_BOUND_MAX).contains(&(dj * db))
+}
+
 /// [`best_triangle`] over `window[k]` for `k` in `listed` (in that order), bit for bit:
 /// one pass finds the second point and keeps the candidates within the side limits with
 /// their distance from the origin, the other looks for the third point among those only.
@@ -549,6 +568,14 @@ fn best_triangle_listed(
     let a = j.p_t - o.p_t;
     let mut best_k: Option<(&FrameSample, Real)> = None;
     for (&k, &db) in listed.iter().zip(dist.iter()).take(near) {
+        // `|a × b| <= |a|·|b|`: a candidate whose bound is below the best area so far
+        // cannot win (ties keep the earlier one), so it is skipped before any arithmetic.
+        // The slack covers the rounding of both sides (a few units in the last place),
+        // which holds while the squares inside the norms are normal numbers.
+        let bound = dj * db;
+        if best_k.is_some_and(|(_, ba)| bound * AREA_BOUND_SLACK < ba) && prunable(dj, db) {
+            continue;
+        }
         let Some(s) = window.get(usize::from(k)) else {
             continue;
         };
@@ -820,6 +847,28 @@ mod tests {
                 && s.px != o.px
         };
         best_triangle(o, samples[first..last].iter().filter(candidate), cfg)
+    }
+
+    proptest::proptest! {
+        /// The bound [`best_triangle_listed`] prunes with holds for the rounded values:
+        /// `|a × b| <= |a|·|b|·AREA_BOUND_SLACK` whenever the sides are [`prunable`],
+        /// for any magnitudes and for near-parallel vectors.
+        #[test]
+        fn rounded_cross_norm_stays_under_the_pruning_bound(
+            a in proptest::array::uniform3(-1.0f32..1.0),
+            b in proptest::array::uniform3(-1.0f32..1.0),
+            scale_a in -12i32..10,
+            scale_b in -12i32..10,
+            along in 0.0f32..1.0,
+        ) {
+            let a = Vector3::from(a) * 10f32.powi(scale_a);
+            // Part of the time nearly parallel to `a` (cancellation in the cross product).
+            let b = Vector3::from(b) * 10f32.powi(scale_b) * (1.0 - along)
+                + a * along * 10f32.powi(scale_b - scale_a);
+            let bound = a.norm() * b.norm();
+            proptest::prop_assume!(prunable(a.norm(), b.norm()));
+            proptest::prop_assert!(a.cross(&b).norm() <= bound * AREA_BOUND_SLACK);
+        }
     }
 
     proptest::proptest! {

@@ -98,19 +98,22 @@ pub struct FlowParams {
     /// levels, per patch pixel and squared pixel of the level, on the 0-255 scale of the
     /// patch SSD; 0 turns it off. Look-alike objects (a row of identical boxes) match a
     /// shift by one object's width about as well as their true motion; at coarse levels a
-    /// patch can land on such a copy and the finer levels cannot undo it. Try 4.
+    /// patch can land on such a copy and the finer levels cannot undo it. 4 in
+    /// [`FlowParams::FAST`], [`FlowParams::MEDIUM`] and [`FlowParams::FINE`]; 0 in
+    /// [`FlowParams::ULTRAFAST`] (there it raised the EPE on packed boxes).
     pub coarse_anchor: f32,
     /// How many of the coarsest levels use `coarse_anchor`.
     pub coarse_anchor_levels: usize,
     /// Spatial propagation at the coarsest level too (with `spatial_propagation`). There a
     /// patch covers several look-alike objects, and a neighbour's flow that matches a
     /// copy spreads along a row of them; `false` keeps each coarsest patch to its own
-    /// descent.
+    /// descent. `false` in every preset but [`FlowParams::ULTRAFAST`].
     pub coarsest_propagation: bool,
 }
 
 impl FlowParams {
-    /// Fastest: 8 px patches every 4 px, stops at quarter resolution, no refinement.
+    /// Fastest: 8 px patches every 4 px, stops at quarter resolution, no refinement, no
+    /// coarse anchor.
     pub const ULTRAFAST: Self = Self {
         patch_size_px: 8,
         patch_stride_px: 4,
@@ -137,10 +140,15 @@ impl FlowParams {
     /// Few Gauss-Newton steps per patch: with spatial propagation and the coarser level's
     /// refined flow as starting points, more steps mostly let patches that straddle a
     /// motion boundary slide to the other motion (measured on `testkit::flow` scenes).
+    /// The two coarsest levels are anchored to their starting flow and the coarsest has no
+    /// spatial propagation ([`FlowParams::coarse_anchor`]): on rows of look-alike boxes
+    /// a coarse patch otherwise matches a copy one box away.
     pub const FAST: Self = Self {
         finest_level: 1,
         gd_iters: 4,
         variational_iters: 2,
+        coarse_anchor: 4.0,
+        coarsest_propagation: false,
         ..Self::ULTRAFAST
     };
 
@@ -675,12 +683,12 @@ mod tests {
         )
         .unwrap()
         .with_unknown_as_nan();
-        let anchored = FlowParams {
-            coarse_anchor: 4.0,
-            coarsest_propagation: false,
+        let unanchored = FlowParams {
+            coarse_anchor: 0.0,
+            coarsest_propagation: true,
             ..FlowParams::MEDIUM
         };
-        for (name, params) in [("medium", FlowParams::MEDIUM), ("anchored", anchored)] {
+        for (name, params) in [("unanchored", unanchored), ("anchored", FlowParams::MEDIUM)] {
             let f = DisFlow::new(params)
                 .unwrap()
                 .estimate(a.rgb.view(), b.rgb.view())

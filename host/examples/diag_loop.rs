@@ -70,6 +70,18 @@ struct MaybeExact {
 }
 
 impl FlowEstimator for MaybeExact {
+    fn estimate_with_hint(
+        &self,
+        first: riseg_core::ImageView<'_, [u8; 3]>,
+        second: riseg_core::ImageView<'_, [u8; 3]>,
+        hint_px: [f32; 2],
+    ) -> Result<FlowImage, FlowError> {
+        if self.exact || std::env::var_os("DIAG_NO_HINT").is_some() {
+            return self.estimate(first, second);
+        }
+        self.dis.estimate_with_hint(first, second, hint_px)
+    }
+
     fn estimate(
         &self,
         first: riseg_core::ImageView<'_, [u8; 3]>,

@@ -9,7 +9,8 @@
 //! instead of the built-in one, so the core is judged apart from the flow; `--quiet`
 //! prints one line per scene. `--dump DIR` (without `--quiet`) writes each push's pair as
 //! `DIR/SEED_T.a.png`, `.b.png` (frames `T-1` and `T`), `.labels.png` (truth at `T-1`)
-//! and `.gt.flo` (exact flow), which the `flow_objects` example reads.
+//! and `.gt.flo` (exact flow), which the `flow_objects` example reads. The built-in flow
+//! gets each push's motion hint as in `riseg bench`; `DIAG_NO_HINT=1` withholds it.
 
 use core::cell::RefCell;
 use std::{collections::BTreeMap, rc::Rc};

@@ -18,8 +18,11 @@ use riseg_core::{
     pipeline::RisegLoop,
 };
 
+use nalgebra::{Point3, Vector3};
+
 use crate::{
     flow::FlowEstimator,
+    io::scene::PushAction,
     rig::camera::{Camera, CameraError, CameraFrame},
     rig::robot::{PushCommand, PushRefused, Robot, RobotError, RobotSetup, plan_push},
     rig::tracker::{Observation, TrackError, Tracker},
@@ -216,12 +219,36 @@ fn decide(
 /// along its direction (camera frame): about where the pushed object shows up in the next
 /// frame, the flow's motion hint ([`Tracker::expect_motion_px`]). The episode passes the
 /// finger's whole travel (the command's length, approach included): on the simulator the
-/// pushed boxes moved 22-38 mm for a 30 mm travel. `None` if either point
-/// is behind the camera or the motion is not finite.
+/// pushed boxes moved 22-38 mm for a 30 mm travel. `None` if either point is behind the
+/// camera or the motion is not finite.
 #[must_use]
 pub fn push_motion_px(push: &Push, length_m: f32, intrinsics: &Intrinsics) -> Option<[f32; 2]> {
-    let from = intrinsics.project(&push.start_cam_m)?;
-    let to = intrinsics.project(&(push.start_cam_m + push.direction_cam * length_m))?;
+    motion_hint_px(push.start_cam_m, push.direction_cam, length_m, intrinsics)
+}
+
+/// [`push_motion_px`] of a recorded push (`actions.json`; its length is the finger's
+/// travel, as `riseg gen` and `riseg run --live` record it): the hint a replay of the
+/// scene gives the flow of frame `action.push`, equal to the one the live run gave.
+#[must_use]
+pub fn action_motion_px(action: &PushAction, intrinsics: &Intrinsics) -> Option<[f32; 2]> {
+    let [x, y, z] = action.start_cam_m;
+    let [dx, dy, dz] = action.direction_cam;
+    motion_hint_px(
+        Point3::new(x, y, z),
+        Vector3::new(dx, dy, dz),
+        action.length_m,
+        intrinsics,
+    )
+}
+
+fn motion_hint_px(
+    start_cam_m: Point3<f32>,
+    direction_cam: Vector3<f32>,
+    length_m: f32,
+    intrinsics: &Intrinsics,
+) -> Option<[f32; 2]> {
+    let from = intrinsics.project(&start_cam_m)?;
+    let to = intrinsics.project(&(start_cam_m + direction_cam * length_m))?;
     let d = to - from;
     (d.x.is_finite() && d.y.is_finite()).then_some([d.x, d.y])
 }

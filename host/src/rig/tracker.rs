@@ -373,7 +373,10 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
                 let clock = Stopwatch::start();
                 let (a, b) = (prev.frame.rgb.view(), frame.rgb.view());
                 let flow = match hint {
-                    Some(h) => self.flow.estimate_with_hint(a, b, h)?,
+                    Some(h) => {
+                        log::debug!("flow with the motion hint ({}, {}) px", h[0], h[1]);
+                        self.flow.estimate_with_hint(a, b, h)?
+                    }
                     None => self.flow.estimate(a, b)?,
                 };
                 times.flow_ms = clock.ms();

@@ -503,6 +503,17 @@ mod tests {
             }
             replay.update(t).unwrap();
             replay.find_action().unwrap();
+            // As `riseg run` replays it: the recorded push is the flow's motion hint.
+            let hint = t
+                .checked_sub(1)
+                .and_then(|p| scene.actions.get(p))
+                .and_then(|a| action_motion_px(a, &scene.camera.intrinsics()));
+            assert_eq!(
+                t > 0,
+                hint.is_some(),
+                "frame {t}: the bundled scene's pushes"
+            );
+            tracker.expect_motion_px(hint);
             let observed = tracker
                 .observe(SceneReplay::frame(&scene, t).unwrap())
                 .unwrap();

@@ -11,13 +11,16 @@
 #
 # Needs python3 with opencv-python-headless and numpy; if they are missing, a virtualenv
 # is made under ${RISEG_BENCH_VENV:-$HOME/.cache/riseg-bench-venv} and they are installed
-# from PyPI. The pairs are written to ${RISEG_FLOW_PAIRS:-/tmp/riseg-flow-pairs}/{textured,sim,packed}.
+# from PyPI. RISEG_FLOW_PRESETS picks riseg's rows (default ultrafast,fast,medium,fine; a
+# `+anchor` or `+noanchor` suffix toggles the coarse anchor, see the flow_pairs example).
+# The pairs are written to ${RISEG_FLOW_PAIRS:-/tmp/riseg-flow-pairs}/{textured,sim,packed}.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 PAIRS="${1:-6}"
 RUNS="${2:-7}"
 SEED="${3:-1}"
+PRESETS="${RISEG_FLOW_PRESETS:-ultrafast,fast,medium,fine}"
 DIR="${RISEG_FLOW_PAIRS:-/tmp/riseg-flow-pairs}"
 PY=python3
 if ! "$PY" -c 'import cv2, numpy' 2>/dev/null; then
@@ -37,7 +40,7 @@ trap 'rm -f "$ROWS"' EXIT
 for KIND in textured sim packed; do
   : >"$ROWS"
   rm -f "$DIR/$KIND"/pair_*
-  "$EXAMPLE" "$DIR/$KIND" --kind "$KIND" --pairs "$PAIRS" --runs "$RUNS" --seed "$SEED" >>"$ROWS"
+  "$EXAMPLE" "$DIR/$KIND" --kind "$KIND" --pairs "$PAIRS" --runs "$RUNS" --seed "$SEED" --presets "$PRESETS" >>"$ROWS"
   "$PY" bench/flow_vs_opencv.py "$DIR/$KIND" --runs "$RUNS" >>"$ROWS"
   echo "Dense flow, 640x480, $PAIRS $KIND pairs from seed $SEED (exact ground truth), one thread,"
   echo "median of $RUNS runs per pair, averaged over pairs; $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)."

@@ -9,7 +9,8 @@
 //! instead of the built-in one, so the core is judged apart from the flow; `--quiet`
 //! prints one line per scene. `--dump DIR` (without `--quiet`) writes each push's pair as
 //! `DIR/SEED_T.a.png`, `.b.png` (frames `T-1` and `T`), `.labels.png` (truth at `T-1`)
-//! and `.gt.flo` (exact flow), which the `flow_objects` example reads.
+//! and `.gt.flo` (exact flow), which the `flow_objects` example reads. The built-in flow
+//! gets each push's motion hint as in `riseg bench`; `DIAG_NO_HINT=1` withholds it.
 
 use core::cell::RefCell;
 use std::{collections::BTreeMap, rc::Rc};
@@ -70,6 +71,18 @@ struct MaybeExact {
 }
 
 impl FlowEstimator for MaybeExact {
+    fn estimate_with_hint(
+        &self,
+        first: riseg_core::ImageView<'_, [u8; 3]>,
+        second: riseg_core::ImageView<'_, [u8; 3]>,
+        hint_px: [f32; 2],
+    ) -> Result<FlowImage, FlowError> {
+        if self.exact || std::env::var_os("DIAG_NO_HINT").is_some() {
+            return self.estimate(first, second);
+        }
+        self.dis.estimate_with_hint(first, second, hint_px)
+    }
+
     fn estimate(
         &self,
         first: riseg_core::ImageView<'_, [u8; 3]>,

@@ -44,7 +44,9 @@ struct Args {
     /// Seed of the first pair (pair `i` uses `seed + i`).
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// riseg presets to run, comma-separated.
+    /// riseg presets to run, comma-separated; a `+anchor` suffix (`medium+anchor`) runs the
+    /// preset with `coarse_anchor = 4`, `coarsest_propagation = false`, and `+noanchor`
+    /// with `coarse_anchor = 0`, `coarsest_propagation = true`.
     #[arg(
         long,
         value_delimiter = ',',
@@ -173,8 +175,21 @@ fn main() -> Result<()> {
         pairs.push(load(&args.dir, &name)?);
     }
     for preset in &args.presets {
-        let params =
-            FlowParams::preset(preset).with_context(|| format!("unknown preset {preset:?}"))?;
+        let (name, variant) = preset.split_once('+').unwrap_or((preset.as_str(), ""));
+        let mut params =
+            FlowParams::preset(name).with_context(|| format!("unknown preset {preset:?}"))?;
+        match variant {
+            "" => {}
+            "anchor" => {
+                params.coarse_anchor = 4.0;
+                params.coarsest_propagation = false;
+            }
+            "noanchor" => {
+                params.coarse_anchor = 0.0;
+                params.coarsest_propagation = true;
+            }
+            other => anyhow::bail!("unknown variant {other:?} in {preset:?} (anchor, noanchor)"),
+        }
         let est = DisFlow::new(params)?.with_threads(1)?;
         let (mut obj, mut all, mut ms) = (0.0, 0.0, 0.0);
         for p in &pairs {

@@ -80,12 +80,15 @@ fn segment<'py>(
 }
 
 /// The built-in dense optical flow (DIS, `riseg flow`'s medium preset) from `rgb0` to
-/// `rgb1`: `float32 (H, W, 2)`, `(dx, dy)` pixels.
+/// `rgb1`: `float32 (H, W, 2)`, `(dx, dy)` pixels. `hint`, `(dx, dy)` pixels: where a push
+/// should have moved something (`Scene.motion_hint(t)`), a candidate the search also tries.
 #[pyfunction]
+#[pyo3(signature = (rgb0, rgb1, hint = None))]
 fn flow<'py>(
     py: Python<'py>,
     rgb0: &Bound<'py, PyAny>,
     rgb1: &Bound<'py, PyAny>,
+    hint: Option<(f32, f32)>,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
     let first = image::<u8>("rgb0", "uint8", Some(3), rgb0)?;
     let second = image::<u8>("rgb1", "uint8", Some(3), rgb1)?;
@@ -101,7 +104,11 @@ fn flow<'py>(
                 ImageView::packed(w, h, a).and_then(|a| Ok((a, ImageView::packed(w, h, b)?)));
             let (a, b) = views.map_err(|e| e.to_string())?;
             let estimator = DisFlow::new(FlowParams::MEDIUM).map_err(|e| e.to_string())?;
-            estimator.estimate(a, b).map_err(|e| e.to_string())
+            match hint {
+                Some((x, y)) => estimator.estimate_with_hint(a, b, [x, y]),
+                None => estimator.estimate(a, b),
+            }
+            .map_err(|e| e.to_string())
         })
         .map_err(|e| riseg_err("optical flow", e))?;
     to_numpy_n(py, w, h, field.into_vec())

@@ -12,7 +12,10 @@ use pyo3::{
     prelude::*,
     types::{PyBool, PyDict, PyFloat},
 };
-use riseg::{io::scene::Scene as HostScene, rig::camera::SceneReplay};
+use riseg::{
+    io::scene::Scene as HostScene,
+    rig::{camera::SceneReplay, episode::action_motion_px},
+};
 use serde_json::{Map, Value};
 
 use crate::{
@@ -334,6 +337,15 @@ impl Scene {
                 Ok(dict)
             })
             .collect()
+    }
+
+    /// The flow's motion hint for frame `t` (`(dx, dy)` pixels, for `flow(..., hint=)`):
+    /// the image motion of the recorded push that made frame `t`, as `riseg run` gives it;
+    /// `None` for frame 0 or a scene without that push.
+    fn motion_hint(&self, t: usize) -> Option<(f32, f32)> {
+        let action = self.0.actions.get(t.checked_sub(1)?)?;
+        let [x, y] = action_motion_px(action, &self.0.camera.intrinsics())?;
+        Some((x, y))
     }
 
     fn __repr__(&self) -> String {

@@ -16,7 +16,7 @@ def python_loop(scene: riseg.Scene, config: riseg.Config) -> list:
     static, _heat = riseg.segment(scene.rgb(0), scene.depth_m(0), k)
     masks = [static]
     for t in range(1, scene.frames):
-        field = riseg.flow(scene.rgb(t - 1), scene.rgb(t))
+        field = riseg.flow(scene.rgb(t - 1), scene.rgb(t), hint=scene.motion_hint(t))
         static, _heat = riseg.segment(scene.rgb(t), scene.depth_m(t), k)
         masks.append(riseg.update_mask(masks[-1], scene.depth_m(t - 1), scene.depth_m(t),
                                        field, static, k, config))

@@ -31,7 +31,7 @@ use riseg::{
     io::{files::MemoryFiles, image::FlowImage, scene::Scene},
     rig::{
         camera::{CameraFrame, SceneReplay},
-        episode::find_action_on,
+        episode::{action_motion_px, find_action_on},
         tracker::{GivenInputs, Observation, Settings, Tracker},
         workspace::ActionBuf,
     },
@@ -169,11 +169,19 @@ impl Replay {
                 .map(|image| image.view())
                 .ok_or_else(|| format!("frame {t}: the scene has {} frames", self.frames()))
         };
-        let flow = self
-            .tracker
-            .flow_estimator()
-            .estimate(rgb(prev)?, rgb(t)?)
-            .map_err(|e| format!("frame {t}: optical flow: {e}"))?;
+        // The recorded push that made frame t is the flow's motion hint, as in `riseg run`.
+        let hint = self
+            .scene
+            .actions
+            .get(prev)
+            .and_then(|a| action_motion_px(a, &self.scene.camera.intrinsics()));
+        let estimator = self.tracker.flow_estimator();
+        let (a, b) = (rgb(prev)?, rgb(t)?);
+        let flow = match hint {
+            Some(h) => estimator.estimate_with_hint(a, b, h),
+            None => estimator.estimate(a, b),
+        }
+        .map_err(|e| format!("frame {t}: optical flow: {e}"))?;
         self.pending_flow = Some(flow);
         Ok(())
     }
@@ -495,6 +503,17 @@ mod tests {
             }
             replay.update(t).unwrap();
             replay.find_action().unwrap();
+            // As `riseg run` replays it: the recorded push is the flow's motion hint.
+            let hint = t
+                .checked_sub(1)
+                .and_then(|p| scene.actions.get(p))
+                .and_then(|a| action_motion_px(a, &scene.camera.intrinsics()));
+            assert_eq!(
+                t > 0,
+                hint.is_some(),
+                "frame {t}: the bundled scene's pushes"
+            );
+            tracker.expect_motion_px(hint);
             let observed = tracker
                 .observe(SceneReplay::frame(&scene, t).unwrap())
                 .unwrap();

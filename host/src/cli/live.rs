@@ -332,8 +332,13 @@ fn run<C: Camera, R: Robot>(
         |f: &EpisodeFrame<'_>| {
             masks.push(f.observation.mask.clone());
             report(f).map_err(|e| format!("{e:#}"))?;
-            if let Decision::Push { push, .. } = f.decision {
-                pushes.push(push);
+            if let Decision::Push { push, command } = f.decision {
+                // The recording keeps the finger's travel, the length the flow's motion
+                // hint used, so that a replay gives the same hints (`action_motion_px`).
+                pushes.push(Push {
+                    length_m: command.length_m,
+                    ..push
+                });
                 if args.dry_run {
                     return Err(DRY_RUN_DONE.into());
                 }

@@ -191,4 +191,17 @@ impl FlowEstimator for AnyFlow {
             Self::Onnx(f) => f.estimate(first, second),
         }
     }
+
+    fn estimate_with_hint(
+        &self,
+        first: ImageView<'_, [u8; 3]>,
+        second: ImageView<'_, [u8; 3]>,
+        hint_px: [f32; 2],
+    ) -> Result<FlowImage, FlowError> {
+        match self {
+            Self::Builtin(f) => f.estimate_with_hint(first, second, hint_px),
+            #[cfg(feature = "onnx")]
+            Self::Onnx(f) => f.estimate_with_hint(first, second, hint_px),
+        }
+    }
 }

@@ -65,6 +65,7 @@ use crate::{
         FLOW_DIR, HEAT_DIR, LABEL_DIR, Scene, SceneCamera, SceneError, frame_file, frame_file_name,
     },
     rig::camera::SceneReplay,
+    rig::episode::action_motion_px,
     rig::tracker::{GivenInputs, TrackError, Tracker},
     segment::{HEAT_CERTAIN, Segmentation, StaticSegmenter},
 };
@@ -227,7 +228,9 @@ fn renumber(labels: &mut [u16]) {
 
 /// Replays a recorded scene (the pushes already happened) through `tracker` from frame 0:
 /// the accumulated mask of every frame, in order. Frame `t` uses `given[t]`
-/// ([`Tracker::observe_given`]); frames past the end of `given` compute everything.
+/// ([`Tracker::observe_given`]); frames past the end of `given` compute everything. The
+/// recorded push that made frame `t` (`scene.actions`) is the flow's motion hint
+/// ([`action_motion_px`]), as it was in the closed loop that recorded it.
 /// `on_frame(t)` is called after frame `t`.
 ///
 /// # Errors
@@ -241,11 +244,18 @@ pub fn replay_scene<S: StaticSegmenter, F: FlowEstimator>(
     tracker.reset();
     let mut given = given.into_iter();
     let mut masks = Vec::with_capacity(scene.frames());
+    let intrinsics = scene.camera.intrinsics();
     for t in 0..scene.frames() {
         let Some(frame) = SceneReplay::frame(scene, t) else {
             break;
         };
         let inputs = given.next().unwrap_or_default();
+        // The recorded push that made frame t is the flow's motion hint, as in the live run.
+        let hint = t
+            .checked_sub(1)
+            .and_then(|p| scene.actions.get(p))
+            .and_then(|a| action_motion_px(a, &intrinsics));
+        tracker.expect_motion_px(hint);
         masks.push(
             tracker
                 .observe_given(frame, inputs)
@@ -271,7 +281,13 @@ pub fn run_scene<S: StaticSegmenter, F: FlowEstimator>(
     out: &Path,
     on_frame: impl FnMut(usize),
 ) -> Result<usize, RunError> {
-    let scene = Scene::read_frames(dir)?;
+    let mut scene = Scene::read_frames(dir)?;
+    // The recorded pushes give the flow its motion hints (`replay_scene`); a scene whose
+    // `actions.json` is missing or unreadable replays without them.
+    scene.actions = Scene::read_actions(dir, scene.frames()).unwrap_or_else(|e| {
+        log::warn!("{e}: replaying without the pushes' motion hints");
+        Vec::new()
+    });
     let given = inputs.read_scene(dir, &scene)?;
     let masks = replay_scene(tracker, &scene, given, on_frame).map_err(|(frame, source)| {
         RunError::Track {

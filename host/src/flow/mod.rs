@@ -206,6 +206,24 @@ pub trait FlowEstimator {
         first: ImageView<'_, [u8; 3]>,
         second: ImageView<'_, [u8; 3]>,
     ) -> Result<FlowImage, FlowError>;
+
+    /// Flow from `first` to `second` when the caller expects some of the scene to have
+    /// moved by about `hint_px` (`[dx, dy]`, pixels): a robot that pushed an object knows
+    /// roughly how far and which way it went. The hint is a candidate, not a constraint:
+    /// an estimator may try it beside its own guesses and keeps whatever matches the
+    /// images best. The default ignores it and calls [`FlowEstimator::estimate`].
+    ///
+    /// # Errors
+    /// As [`FlowEstimator::estimate`].
+    fn estimate_with_hint(
+        &self,
+        first: ImageView<'_, [u8; 3]>,
+        second: ImageView<'_, [u8; 3]>,
+        hint_px: [f32; 2],
+    ) -> Result<FlowImage, FlowError> {
+        let _ = hint_px;
+        self.estimate(first, second)
+    }
 }
 
 /// Checks that two images have one non-empty size.

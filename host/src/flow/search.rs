@@ -58,7 +58,14 @@ pub(crate) struct SearchSettings {
     /// Weight of the anchor penalty `anchor · n · |d - d_start|²` added to a patch's SSD
     /// (`n` pixels, `d_start` the flow the patch started from); 0 = none.
     pub anchor: f32,
+    /// Flows every patch also starts from after its own search (from a motion hint, pixels
+    /// of the level; the first `candidates.0` entries); the patch keeps the best, refined,
+    /// if it matches better.
+    pub candidates: (usize, [[f32; 2]; MAX_CANDIDATES]),
 }
+
+/// Most hint candidates one level tries per patch.
+pub(crate) const MAX_CANDIDATES: usize = 4;
 
 /// The first image of a level with its gradients (unpadded, row-major, `w x h`).
 pub(crate) struct Template<'a> {
@@ -338,6 +345,25 @@ impl<const N: usize> Ctx<'_, N> {
         }
         cur
     }
+
+    /// Tries the hint `c` as a second hypothesis with its own anchor centre: if the
+    /// images match better there than at `cur` (whose SSD carries the anchor around the
+    /// patch's start), the patch descends from it and keeps the better result.
+    fn try_hint(&self, m: &PatchModel, px: usize, py: usize, cur: State, c: [f32; 2]) -> State {
+        let (du, dv) = (c[0] - cur.u, c[1] - cur.v);
+        if du * du + dv * dv <= PROPAGATION_MIN_PX * PROPAGATION_MIN_PX {
+            return cur;
+        }
+        let m = PatchModel { start: c, ..*m };
+        let (h, st) = self.eval(&m, px, py, c[0], c[1]);
+        if h.ssd < cur.ssd {
+            let d = self.descend(&m, px, py, h, st);
+            if d.ssd < cur.ssd {
+                return d;
+            }
+        }
+        cur
+    }
 }
 
 /// Searches every patch of one level. `init` is the dense flow (`w x h`) the search starts
@@ -407,6 +433,9 @@ fn search_level_n<const N: usize>(
                 let mut cur = ctx.descend(m, px, py, start, st);
                 if let Some(l) = left.filter(|_| s.propagation) {
                     cur = ctx.propagate(m, px, py, cur, l);
+                }
+                for &h in s.candidates.1.iter().take(s.candidates.0) {
+                    cur = ctx.try_hint(m, px, py, cur, h);
                 }
                 *o = cur;
                 left = Some(cur);

@@ -663,6 +663,20 @@ impl Scene {
         Self::read_parts(&DiskFiles, dir, false)
     }
 
+    /// The recorded pushes of the scene folder `dir` that holds `frames` frames
+    /// (`actions.json`, checked as [`Scene::read`] checks it); empty if the file is missing.
+    ///
+    /// # Errors
+    /// As [`Scene::read`] for `actions.json`.
+    pub fn read_actions(dir: &Path, frames: usize) -> Result<Vec<PushAction>, SceneError> {
+        let path = dir.join(ACTIONS_FILE);
+        if frames < 2 || !DiskFiles.is_file(&path) {
+            return Ok(Vec::new());
+        }
+        let bytes = DiskFiles.read(&path).map_err(|e| io_error(&path, e))?;
+        actions_from_json(&path, &bytes, frames - 1)
+    }
+
     fn read_parts(files: &impl Files, dir: &Path, everything: bool) -> Result<Self, SceneError> {
         if !files.is_dir(dir) {
             return Err(SceneError::Missing {

@@ -202,6 +202,8 @@ pub struct Tracker<S, F> {
     cfg: Config,
     workspace: Option<(usize, usize, WorkspaceBuf)>,
     previous: Option<Previous>,
+    /// The motion hint for the next frame's flow ([`Tracker::expect_motion_px`]).
+    flow_hint: Option<[f32; 2]>,
 }
 
 impl Tracker<ClassicalSegmenter, DisFlow> {
@@ -231,6 +233,7 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
             cfg,
             workspace: None,
             previous: None,
+            flow_hint: None,
         })
     }
 
@@ -254,6 +257,16 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
     /// Forgets the previous frame: the next frame starts a new scene.
     pub fn reset(&mut self) {
         self.previous = None;
+        self.flow_hint = None;
+    }
+
+    /// Tells the tracker that part of the scene should appear moved by about `hint_px`
+    /// (`[dx, dy]`, pixels) in the next frame: the image motion of the push just made
+    /// ([`crate::rig::episode::push_motion_px`]). The next [`Tracker::observe`] passes it
+    /// to the flow estimator ([`FlowEstimator::estimate_with_hint`]) and forgets it;
+    /// `None` forgets it now.
+    pub fn expect_motion_px(&mut self, hint_px: Option<[f32; 2]>) {
+        self.flow_hint = hint_px;
     }
 
     /// The last frame observed, if any: after [`Tracker::observe`] returns `Ok`, the frame
@@ -353,13 +366,19 @@ impl<S: StaticSegmenter, F: FlowEstimator> Tracker<S, F> {
             });
         };
 
+        let hint = self.flow_hint.take();
         let flow = match given.flow {
             Some(flow) => flow,
             None => {
                 let clock = Stopwatch::start();
-                let flow = self
-                    .flow
-                    .estimate(prev.frame.rgb.view(), frame.rgb.view())?;
+                let (a, b) = (prev.frame.rgb.view(), frame.rgb.view());
+                let flow = match hint {
+                    Some(h) => {
+                        log::debug!("flow with the motion hint ({}, {}) px", h[0], h[1]);
+                        self.flow.estimate_with_hint(a, b, h)?
+                    }
+                    None => self.flow.estimate(a, b)?,
+                };
                 times.flow_ms = clock.ms();
                 flow
             }

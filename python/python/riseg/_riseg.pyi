@@ -112,6 +112,9 @@ class Scene:
         """Depth of frame ``t``, metres, ``(H, W)``."""
     def labels(self, t: int) -> Optional[npt.NDArray[np.uint16]]:
         """Ground truth of frame ``t``, or ``None`` without ``label/``."""
+    def motion_hint(self, t: int) -> Optional[tuple[float, float]]:
+        """The flow's motion hint for frame ``t`` (``(dx, dy)`` px): the recorded push's
+        image motion, as ``riseg run`` gives it; ``None`` for frame 0."""
     def actions(self) -> list[dict[str, Any]]:
         """The recorded pushes of ``actions.json``."""
 
@@ -122,7 +125,11 @@ def segment(
 ) -> tuple[npt.NDArray[np.uint16], npt.NDArray[np.uint8]]:
     """The built-in classical static segmenter: ``(labels, heatmap)``."""
 
-def flow(rgb0: npt.NDArray[np.uint8], rgb1: npt.NDArray[np.uint8]) -> npt.NDArray[np.float32]:
+def flow(
+    rgb0: npt.NDArray[np.uint8],
+    rgb1: npt.NDArray[np.uint8],
+    hint: Optional[tuple[float, float]] = None,
+) -> npt.NDArray[np.float32]:
     """The built-in DIS optical flow from ``rgb0`` to ``rgb1``, ``(H, W, 2)``."""
 
 def update_mask(

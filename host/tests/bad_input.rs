@@ -310,7 +310,7 @@ fn flow_refuses_bad_images_and_resource_flags() {
 
 #[test]
 fn run_reads_only_what_it_uses_and_never_writes_over_its_input() {
-    // Bad files run never reads (labels, flow, actions) do not stop it.
+    // Bad files run never reads (labels, flow) and a missing actions.json do not stop it.
     let w = Work::new();
     fs::write(w.file("label/000000.png"), b"not a png").unwrap();
     fs::write(w.file("flow/000000.flo"), b"not a flo").unwrap();
@@ -324,6 +324,15 @@ fn run_reads_only_what_it_uses_and_never_writes_over_its_input() {
             .size(),
         (640, 480)
     );
+
+    // actions.json is read for the flow's motion hints: missing is fine (above), corrupt
+    // is an error naming it, before any mask is written.
+    let w = Work::new();
+    fs::write(w.file("actions.json"), b"[{\"push\": 0,").unwrap();
+    let pred = w.out("pred");
+    let out = run(&os(&[&"run", &"--scene", &w.scene(), &"--out", &pred]));
+    assert_fails("corrupt actions.json", &out, 1, &["actions.json"]);
+    assert!(!pred.join("scene_000/label").exists(), "a mask was written");
 
     // --out the dataset itself: refused before anything is written.
     let w = Work::new();

@@ -282,12 +282,9 @@ pub fn run_scene<S: StaticSegmenter, F: FlowEstimator>(
     on_frame: impl FnMut(usize),
 ) -> Result<usize, RunError> {
     let mut scene = Scene::read_frames(dir)?;
-    // The recorded pushes give the flow its motion hints (`replay_scene`); a scene whose
-    // `actions.json` is missing or unreadable replays without them.
-    scene.actions = Scene::read_actions(dir, scene.frames()).unwrap_or_else(|e| {
-        log::warn!("{e}: replaying without the pushes' motion hints");
-        Vec::new()
-    });
+    // The recorded pushes give the flow its motion hints (`replay_scene`); a scene without
+    // `actions.json` replays without them, a corrupt one is an error naming it.
+    scene.actions = Scene::read_actions(dir, scene.frames())?;
     let given = inputs.read_scene(dir, &scene)?;
     let masks = replay_scene(tracker, &scene, given, on_frame).map_err(|(frame, source)| {
         RunError::Track {

@@ -219,11 +219,11 @@ fn split_one(
     // miss are computed once, into `misses` (the raw ones, then the smoothed ones).
     let (raw, smooth) = misses.split_at_mut(misses.len() / 2);
     let stored = |misses: &[Real], i: usize| {
-        let m = misses.get(3 * i..3 * i + 3)?;
+        let m = misses.get(miss_slot(i)?)?;
         Some(Vector3::new(*m.first()?, *m.get(1)?, *m.get(2)?))
     };
     let store = |misses: &mut [Real], i: usize, e: Vector3<Real>| {
-        if let Some(m) = misses.get_mut(3 * i..3 * i + 3) {
+        if let Some(m) = miss_slot(i).and_then(|r| misses.get_mut(r)) {
             m.copy_from_slice(e.as_slice());
         }
     };
@@ -351,6 +351,13 @@ fn coherence(frames: &[BodyFrame], is_member: &impl Fn(usize) -> bool, side: &[u
         return 0.0;
     }
     same as Real / total as Real
+}
+
+/// Where frame `i`'s three miss components are in a misses scratch; `None` when the
+/// offset overflows, as for [`nearest`]'s `usize::MAX` (no neighbour).
+fn miss_slot(i: usize) -> Option<core::ops::Range<usize>> {
+    let start = i.checked_mul(3)?;
+    Some(start..start.checked_add(3)?)
 }
 
 /// The `K` member frames nearest frame `i` (by their first pixels at `t`), nearest
@@ -553,6 +560,15 @@ mod tests {
             Translation3::new(dx_m, 0.0, 0.0),
             UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw_deg.to_radians()),
         )
+    }
+
+    #[test]
+    fn a_missing_neighbour_has_no_miss_slot() {
+        // `nearest` marks a missing neighbour with `usize::MAX`; its `3 * i` overflowed
+        // (a panic with overflow checks, found by the update_mask fuzz target).
+        assert_eq!(miss_slot(usize::MAX), None);
+        assert_eq!(miss_slot(usize::MAX / 3 + 1), None);
+        assert_eq!(miss_slot(2), Some(6..9));
     }
 
     #[test]

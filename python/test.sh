@@ -7,13 +7,18 @@
 # skipped: a missing tool, package or binary fails the script.
 #
 # Environment: RISEG_CI_CACHE (default ~/.cache/riseg-ci) for the tools and, unless
-# CARGO_TARGET_DIR is set, the cargo target; PYTHON (default python3).
+# CARGO_TARGET_DIR is set, the cargo target; PYTHON (default python3). RISEG_RERUN=1 also
+# builds the CLI with `--features rerun` (the rerun SDK: a long cold build), installs the
+# `rerun-sdk` wheel of the same version and runs tests/test_rerun.py; without it that
+# file is not run, and the script says so.
 set -euo pipefail
 cd "$(dirname "$0")"
 
 MATURIN_VERSION=1.16.0
 NUMPY_VERSION=2.4.6
 PYTEST_VERSION=8.4.2
+# The same version as the `rerun` crate in Cargo.toml.
+RERUN_SDK_VERSION=0.36.3
 
 CACHE="${RISEG_CI_CACHE:-$HOME/.cache/riseg-ci}"
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$CACHE/target}"
@@ -31,16 +36,27 @@ fi
 echo "python/test.sh: wheel (maturin $MATURIN_VERSION)"
 "$TOOLS/bin/maturin" build --release --quiet --out "$WORK/wheels"
 
+PACKAGES=("numpy==$NUMPY_VERSION" "pytest==$PYTEST_VERSION")
+TESTS=(test_riseg.py)
+FEATURES=()
+if [ "${RISEG_RERUN:-0}" = 1 ]; then
+  PACKAGES+=("rerun-sdk==$RERUN_SDK_VERSION")
+  TESTS+=(test_rerun.py)
+  FEATURES=(--features rerun)
+else
+  echo "python/test.sh: not running test_rerun.py (RISEG_RERUN=1 runs it)"
+fi
+
 echo "python/test.sh: the riseg CLI the tests compare with"
-(cd .. && cargo build --release --quiet -p riseg --bin riseg)
+(cd .. && cargo build --release --quiet -p riseg --bin riseg "${FEATURES[@]}")
 
 echo "python/test.sh: fresh virtualenv"
 "$PYTHON" -m venv "$WORK/venv"
-"$WORK/venv/bin/pip" install --quiet --disable-pip-version-check \
-  "numpy==$NUMPY_VERSION" "pytest==$PYTEST_VERSION"
+"$WORK/venv/bin/pip" install --quiet --disable-pip-version-check "${PACKAGES[@]}"
 "$WORK/venv/bin/pip" install --quiet --disable-pip-version-check --no-index \
   "$WORK"/wheels/riseg-*.whl
 
 # Run from the tests folder: `import riseg` must find the installed wheel, not the source.
 cd tests
-RISEG_BIN="$CARGO_TARGET_DIR/release/riseg" "$WORK/venv/bin/python" -m pytest -p no:cacheprovider "$@"
+RISEG_BIN="$CARGO_TARGET_DIR/release/riseg" "$WORK/venv/bin/python" -m pytest -p no:cacheprovider \
+  "${TESTS[@]}" "$@"

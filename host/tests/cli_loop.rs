@@ -152,3 +152,31 @@ fn run_names_a_missing_scene_folder_and_writes_nothing() {
         .expect("run");
     assert!(!neither.status.success());
 }
+
+#[cfg(not(feature = "rerun"))]
+#[test]
+fn rerun_without_the_feature_says_how_to_build_it_and_writes_nothing() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let rrd = dir.path().join("loop.rrd");
+    for command in ["run", "demo"] {
+        let mut cmd = riseg();
+        cmd.arg(command);
+        if command == "run" {
+            cmd.arg("--scene").arg(dir.path().join("scene_000"));
+        }
+        let out = cmd
+            .arg("--out")
+            .arg(dir.path().join("out"))
+            .arg("--rerun")
+            .arg(&rrd)
+            .output()
+            .expect("run riseg");
+        assert!(!out.status.success(), "{command}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stderr.contains("loop.rrd") && stderr.contains("--features rerun"),
+            "{command}: {stderr}"
+        );
+        assert!(!rrd.exists(), "{command}");
+    }
+}

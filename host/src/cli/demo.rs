@@ -93,17 +93,18 @@ pub struct DemoReport {
     pub stop: Stop,
 }
 
-/// Runs the demo (module docs); `on_frame(t)` is called as each frame is done.
+/// Runs the demo (module docs); `on_frame` sees each frame as it is done, and an error it
+/// returns ends the demo.
 ///
 /// # Errors
-/// Any failure of the simulator, the loop or writing a file, with what failed.
+/// Any failure of the simulator, the loop, writing a file or `on_frame`, with what failed.
 pub fn run_demo(
     out: &Path,
     seed: u64,
     layout: Layout,
     settings: &Settings,
     models: &Models,
-    mut on_frame: impl FnMut(usize),
+    mut on_frame: impl FnMut(&EpisodeFrame<'_>) -> anyhow::Result<()>,
 ) -> anyhow::Result<DemoReport> {
     use anyhow::Context as _;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
@@ -120,8 +121,7 @@ pub fn run_demo(
         |f: &EpisodeFrame<'_>| {
             let done = demo_frame(out, f).map_err(|e| format!("{e:#}"))?;
             frames.push(done);
-            on_frame(f.t);
-            Ok(())
+            on_frame(f).map_err(|e| format!("{e:#}"))
         },
     )?;
     let report = DemoReport {
@@ -441,6 +441,8 @@ mod command {
     use crate::cli::LayoutArg;
     use crate::cli::config::ConfigArg;
     use crate::cli::models::Models;
+    use crate::cli::record::{PushArrow, Recording};
+    use crate::rig::episode::Decision;
 
     pub(in crate::cli) const DEMO_HELP: &str = "\
 Run the whole loop on a simulated scene and write a report (the default command).
@@ -474,6 +476,11 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
         /// Output folder (created if missing; earlier demo files in it are replaced).
         #[arg(long, default_value = "riseg-demo")]
         out: PathBuf,
+        /// Also record every frame to FILE (a rerun .rrd: images, masks, body frames,
+        /// pushes, flow, stage timings on the `push` timeline); needs riseg built with
+        /// `--features rerun`.
+        #[arg(long, value_name = "FILE.rrd")]
+        rerun: Option<PathBuf>,
         #[command(flatten)]
         models: Models,
         #[command(flatten)]
@@ -487,6 +494,7 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
                 seed: None,
                 out: PathBuf::from("riseg-demo"),
                 models: Models::default(),
+                rerun: None,
                 config: ConfigArg::default(),
             }
         }
@@ -504,14 +512,24 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
         let seed = args
             .seed
             .unwrap_or_else(|| crate::cli::demo::default_seed(layout));
-        let report =
-            crate::cli::demo::run_demo(&args.out, seed, layout, &settings, &args.models, |t| {
-                bar.set_message(format!(
-                    "frame {t} done; pushing, rendering frame {}",
-                    t + 1
-                ));
-            })
-            .with_context(|| format!("demo on simulated {layout} scene {seed}"))?;
+        let recording = args.rerun.as_deref().map(Recording::create).transpose()?;
+        let report = crate::cli::demo::run_demo(&args.out, seed, layout, &settings, &args.models, |f| {
+            bar.set_message(format!(
+                "frame {} done; pushing, rendering frame {}",
+                f.t,
+                f.t + 1
+            ));
+            let Some(recording) = &recording else {
+                return Ok(());
+            };
+            let push = match &f.decision {
+                Decision::Push { push, .. } => Some(PushArrow::from_push(push)),
+                Decision::Stop(_) => None,
+            };
+            recording.frame("demo", f.t, f.frame, f.observation, push.as_ref())
+        })
+        .with_context(|| format!("demo on simulated {layout} scene {seed}"))?;
+        recording.map(Recording::finish).transpose()?;
         bar.finish_and_clear();
         say!(
             "riseg demo: simulated {layout} scene {}, {} pushes; {}.\n",

@@ -1,5 +1,6 @@
-"""``riseg demo --rerun`` and ``riseg run --rerun`` read back with the rerun-sdk wheel
-(no viewer): every entity of every frame is in the file."""
+"""``riseg demo --rerun`` and ``riseg run --rerun`` read back with the rerun-sdk wheel of
+the same version (no viewer): every entity of every frame is in the file, as the archetype
+host/src/cli/record.rs documents."""
 
 from collections import defaultdict
 from pathlib import Path
@@ -8,35 +9,52 @@ from rerun.experimental import RrdReader
 
 from conftest import run_cli
 
-EVERY_FRAME = ["camera/rgb", "camera/depth", "camera/static", "camera/riseg"] + [
-    f"timing/{stage}" for stage in ("segment", "flow", "frames", "twists", "grouping", "mask")
-]
-AFTER_A_PUSH = ["camera/flow", "body_frames"]
-PUSH = ["camera/push", "push"]
-STATIC = ["", "camera"]  # view coordinates and class colours; the pinhole
+STAGES = ("segment", "flow", "frames", "twists", "grouping", "mask")
+# Entity under the root -> its archetype.
+EVERY_FRAME = {
+    "camera/rgb": "Image",
+    "camera/depth": "DepthImage",
+    "camera/static": "SegmentationImage",
+    "camera/riseg": "SegmentationImage",
+} | {f"timing/{stage}": "Scalars" for stage in STAGES}
+AFTER_A_PUSH = {"camera/flow": "Image", "body_frames": "Arrows3D"}
+PUSH = {"camera/push": "Arrows2D", "push": "Arrows3D"}
+STATIC = {"": {"ViewCoordinates", "AnnotationContext"}, "camera": {"Pinhole"}}
 
 
-def frames_by_entity(rrd: Path) -> tuple[dict, set]:
-    """``{entity: {push index, ...}}`` of the temporal data, and the static entities."""
-    timed, static = defaultdict(set), set()
-    for chunk in RrdReader(rrd).stream():
-        if chunk.is_static:
-            static.add(chunk.entity_path)
-        elif "push" in chunk.timeline_names:
-            timed[chunk.entity_path].update(chunk.to_record_batch().column("push").to_pylist())
-    return timed, static
+class Recording:
+    """The entities of one .rrd: push indices and archetypes of the temporal data, and the
+    archetypes of the static data."""
 
+    def __init__(self, rrd: Path):
+        self.pushes = defaultdict(set)
+        self.archetypes = defaultdict(set)
+        self.static = defaultdict(set)
+        for chunk in RrdReader(rrd).stream():
+            batch = chunk.to_record_batch()
+            # Component columns are named ``Archetype:field``.
+            kinds = {name.split(":")[0] for name in batch.schema.names if ":" in name}
+            if chunk.is_static:
+                self.static[chunk.entity_path] |= kinds
+            elif "push" in chunk.timeline_names:
+                self.pushes[chunk.entity_path].update(batch.column("push").to_pylist())
+                self.archetypes[chunk.entity_path] |= kinds
 
-def check_recording(rrd: Path, root: str, frames: int, pushes: set) -> None:
-    timed, static = frames_by_entity(rrd)
-    for entity in STATIC:
-        assert f"/{root}/{entity}".rstrip("/") in static, (entity, static)
-    for entity in EVERY_FRAME:
-        assert timed[f"/{root}/{entity}"] == set(range(frames)), entity
-    for entity in AFTER_A_PUSH:
-        assert timed[f"/{root}/{entity}"] == set(range(1, frames)), entity
-    for entity in PUSH:
-        assert timed[f"/{root}/{entity}"] == pushes, entity
+    def check(self, root: str, frames: int, pushes: set) -> None:
+        for entity, kinds in STATIC.items():
+            path = f"/{root}/{entity}".rstrip("/")
+            assert kinds <= self.static[path], (path, dict(self.static))
+        for entities, expected in [
+            (EVERY_FRAME, set(range(frames))),
+            (AFTER_A_PUSH, set(range(1, frames))),
+            (PUSH, pushes),
+        ]:
+            for entity, kind in entities.items():
+                path = f"/{root}/{entity}"
+                assert self.pushes[path] == expected, (path, self.pushes[path])
+                assert self.archetypes[path] == {kind}, (path, self.archetypes[path])
+        known = {f"/{root}/{e}" for e in EVERY_FRAME | AFTER_A_PUSH | PUSH}
+        assert set(self.pushes) == known, set(self.pushes) ^ known
 
 
 def test_demo_recording_has_every_push(tmp_path):
@@ -45,7 +63,7 @@ def test_demo_recording_has_every_push(tmp_path):
     pushes = int(out.split(" pushes;")[0].rsplit(" ", 1)[1])
     assert pushes >= 1, out
     # The demo pushes from every frame but its last, where the loop stops.
-    check_recording(rrd, "demo", pushes + 1, set(range(pushes)))
+    Recording(rrd).check("demo", pushes + 1, set(range(pushes)))
 
 
 def test_run_recording_has_every_frame(scene_dir, tmp_path):
@@ -53,4 +71,4 @@ def test_run_recording_has_every_frame(scene_dir, tmp_path):
     run_cli("run", "--scene", str(scene_dir), "--out", str(tmp_path / "pred"),
             "--rerun", str(rrd))
     # The scene's two recorded pushes were made from frames 0 and 1.
-    check_recording(rrd, scene_dir.name, 3, {0, 1})
+    Recording(rrd).check(scene_dir.name, 3, {0, 1})

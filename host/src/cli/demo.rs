@@ -28,7 +28,7 @@ use crate::{
     cli::config::Settings,
     cli::eval::PushReport,
     cli::models::Models,
-    draw::{Clip, arrow, dot, label_colour, line, overlay_labels},
+    draw::{Clip, PUSH_COLOUR, arrow, body_frame_colour, dot, line, overlay_labels},
     eval::metrics::PushAverages,
     flow::viz::flow_to_rgb,
     io::{
@@ -187,9 +187,7 @@ fn remove_stale_frames(out: &Path, frames: usize) -> anyhow::Result<()> {
     Ok(())
 }
 
-const YELLOW: [u8; 3] = [255, 230, 0];
 const WHITE: [u8; 3] = [255, 255, 255];
-const GREY: [u8; 3] = [120, 120, 120];
 
 /// The four-panel picture of one frame (module docs).
 #[must_use]
@@ -211,10 +209,7 @@ pub fn panels(f: &EpisodeFrame<'_>) -> RgbImage {
     if let Some(step) = &obs.step {
         let clip = Clip::all(&frames_panel);
         for g in &step.frames {
-            let colour = match g.group {
-                Some(id) if g.moving => label_colour(id.saturating_add(1)),
-                _ => GREY,
-            };
+            let colour = body_frame_colour(g.group, g.moving);
             let px = g.frame.px_t1;
             line(&mut frames_panel, clip, px[0], px[1], colour, 1);
             line(&mut frames_panel, clip, px[0], px[2], colour, 1);
@@ -244,8 +239,8 @@ fn draw_push(img: &mut RgbImage, intrinsics: &Intrinsics, push: &Push, command: 
     let from = push.start_cam_m - push.direction_cam * approach_m;
     let to = push.start_cam_m + push.direction_cam * push.length_m;
     match (intrinsics.project(&from), intrinsics.project(&to)) {
-        (Some(a), Some(b)) => arrow(img, clip, [a.x, a.y], [b.x, b.y], YELLOW, 3),
-        _ => dot(img, clip, push.start_px, YELLOW, 3),
+        (Some(a), Some(b)) => arrow(img, clip, [a.x, a.y], [b.x, b.y], PUSH_COLOUR, 3),
+        _ => dot(img, clip, push.start_px, PUSH_COLOUR, 3),
     }
 }
 
@@ -513,22 +508,23 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
             .seed
             .unwrap_or_else(|| crate::cli::demo::default_seed(layout));
         let recording = args.rerun.as_deref().map(Recording::create).transpose()?;
-        let report = crate::cli::demo::run_demo(&args.out, seed, layout, &settings, &args.models, |f| {
-            bar.set_message(format!(
-                "frame {} done; pushing, rendering frame {}",
-                f.t,
-                f.t + 1
-            ));
-            let Some(recording) = &recording else {
-                return Ok(());
-            };
-            let push = match &f.decision {
-                Decision::Push { push, .. } => Some(PushArrow::from_push(push)),
-                Decision::Stop(_) => None,
-            };
-            recording.frame("demo", f.t, f.frame, f.observation, push.as_ref())
-        })
-        .with_context(|| format!("demo on simulated {layout} scene {seed}"))?;
+        let report =
+            crate::cli::demo::run_demo(&args.out, seed, layout, &settings, &args.models, |f| {
+                bar.set_message(format!(
+                    "frame {} done; pushing, rendering frame {}",
+                    f.t,
+                    f.t + 1
+                ));
+                let Some(recording) = &recording else {
+                    return Ok(());
+                };
+                let push = match &f.decision {
+                    Decision::Push { push, .. } => Some(PushArrow::from_push(push)),
+                    Decision::Stop(_) => None,
+                };
+                recording.frame("demo", f.t, f.frame, f.observation, push.as_ref())
+            })
+            .with_context(|| format!("demo on simulated {layout} scene {seed}"))?;
         recording.map(Recording::finish).transpose()?;
         bar.finish_and_clear();
         say!(

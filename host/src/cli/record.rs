@@ -18,14 +18,19 @@
 //! | `ROOT/camera/riseg` | `SegmentationImage` | RISeg's accumulated mask |
 //! | `ROOT/camera/flow` | `Image` | flow from `t − 1` (Middlebury colours; `t > 0`) |
 //! | `ROOT/camera/push` | `Arrows2D` | the push made from frame `t` (if any) |
-//! | `ROOT/body_frames` | `Arrows3D` | the step's body frames at `t − 1`: two edges each, in the colour of their twist group (grey: none; `t > 0`) |
+//! | `ROOT/body_frames` | `Arrows3D` | the step's body frames, moved to frame `t`: two edges each, in the colour of their twist group (grey: none or static; `t > 0`), as in the demo's pictures |
 //! | `ROOT/push` | `Arrows3D` | the push in the camera frame, metres (if any) |
 //! | `ROOT/timing/STAGE` | `Scalars` | milliseconds of each stage ([`StageTimes::NAMES`](crate::rig::tracker::StageTimes::NAMES)) |
 //!
 //! Labels share rerun class ids, so one object keeps one colour in both masks and in every
-//! frame it keeps its label. Logging errors (a full disk) end the command with the file's
-//! name. Without the feature, [`Recording::create`] is an error that says how to build
-//! riseg with it; the commands are otherwise the same.
+//! frame it keeps its label.
+//!
+//! The recording is written to a hidden temporary file beside `FILE.rrd` and renamed to it
+//! by [`Recording::finish`]: `FILE.rrd` is a complete recording or what it was before, and
+//! a command that fails leaves no partial file. A folder that cannot hold the file and
+//! logging errors (a full disk) end the command with the file's name. Without the feature,
+//! [`Recording::create`] is an error that says how to build riseg with it; the commands
+//! are otherwise the same.
 
 use riseg_core::Intrinsics;
 
@@ -80,14 +85,14 @@ impl PushArrow {
 
 #[cfg(feature = "rerun")]
 mod sink {
-    use std::path::Path;
+    use std::path::{Path, PathBuf};
 
     use anyhow::Context as _;
     use riseg_core::Intrinsics;
 
     use super::PushArrow;
     use crate::{
-        draw::label_colour,
+        draw::{PUSH_COLOUR, body_frame_colour, label_colour},
         flow::viz::flow_to_rgb,
         rig::{camera::CameraFrame, tracker::Observation, tracker::StageTimes},
     };
@@ -96,17 +101,25 @@ mod sink {
     /// rerun's own palette.
     const MAX_CLASS_ID: u16 = 255;
 
-    /// The body frames' colour when they joined no twist group.
-    const NO_GROUP_RGB: [u8; 3] = [128, 128, 128];
-
-    /// The push's colour (yellow, as in the demo's pictures).
-    const PUSH_RGB: [u8; 3] = [255, 220, 0];
-
     /// An open `.rrd` file sink (module docs).
     #[derive(Debug)]
     pub struct Recording {
+        /// Dropped before `partial`: that ends rerun's writer thread, which closes the file.
         stream: rerun::RecordingStream,
-        path: std::path::PathBuf,
+        partial: Partial,
+        path: PathBuf,
+    }
+
+    /// The file being written, `.NAME.partial` beside `NAME`; deleted when dropped, so
+    /// nothing is left of a recording that was not finished (after `finish` renamed it,
+    /// there is nothing to delete).
+    #[derive(Debug)]
+    struct Partial(PathBuf);
+
+    impl Drop for Partial {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_file(&self.0);
+        }
     }
 
     fn rgb(c: [u8; 3]) -> rerun::Color {
@@ -124,11 +137,20 @@ mod sink {
         /// # Errors
         /// The file cannot be created.
         pub fn create(path: &Path) -> anyhow::Result<Self> {
+            let context = || format!("--rerun {}", path.display());
+            let Some(name) = path.file_name() else {
+                anyhow::bail!("--rerun {}: not a file name", path.display());
+            };
+            let mut partial_name = std::ffi::OsString::from(".");
+            partial_name.push(name);
+            partial_name.push(".partial");
+            let partial = Partial(path.with_file_name(partial_name));
             let stream = rerun::RecordingStreamBuilder::new("riseg")
-                .save(path)
-                .with_context(|| format!("--rerun {}", path.display()))?;
+                .save(&partial.0)
+                .with_context(context)?;
             Ok(Self {
                 stream,
+                partial,
                 path: path.to_owned(),
             })
         }
@@ -206,10 +228,8 @@ mod sink {
                 let mut vectors = Vec::with_capacity(2 * step.frames.len());
                 let mut colours = Vec::with_capacity(2 * step.frames.len());
                 for f in &step.frames {
-                    let [o, a, b] = f.frame.p_t.map(|p| [p.x, p.y, p.z]);
-                    let colour = f
-                        .group
-                        .map_or(NO_GROUP_RGB, |g| label_colour(g.saturating_add(1)));
+                    let [o, a, b] = f.frame.p_t1.map(|p| [p.x, p.y, p.z]);
+                    let colour = body_frame_colour(f.group, f.moving);
                     for end in [a, b] {
                         origins.push(o);
                         vectors.push([end[0] - o[0], end[1] - o[1], end[2] - o[2]]);
@@ -230,14 +250,14 @@ mod sink {
                     format!("{cam}/push"),
                     &rerun::Arrows2D::from_vectors([[x1 - x0, y1 - y0]])
                         .with_origins([[x0 + 0.5, y0 + 0.5]])
-                        .with_colors([rgb(PUSH_RGB)]),
+                        .with_colors([rgb(PUSH_COLOUR)]),
                 )?;
                 let [a, b] = [p.start_cam_m, p.end_cam_m];
                 rec.log(
                     format!("{root}/push"),
                     &rerun::Arrows3D::from_vectors([[b[0] - a[0], b[1] - a[1], b[2] - a[2]]])
                         .with_origins([a])
-                        .with_colors([rgb(PUSH_RGB)]),
+                        .with_colors([rgb(PUSH_COLOUR)]),
                 )?;
             }
             for (name, ms) in StageTimes::NAMES.iter().zip(observation.times.values()) {
@@ -277,14 +297,21 @@ mod sink {
             Ok(())
         }
 
-        /// Flushes and closes the file.
+        /// Flushes and closes the file and moves it to its path.
         ///
         /// # Errors
-        /// The last writes failed.
+        /// A write failed, or the file could not be moved (then nothing is at the path).
         pub fn finish(self) -> anyhow::Result<()> {
-            self.stream
-                .flush_blocking()
-                .with_context(|| format!("--rerun {}", self.path.display()))
+            let Self {
+                stream,
+                partial,
+                path,
+            } = self;
+            let context = || format!("--rerun {}", path.display());
+            stream.flush_blocking().with_context(context)?;
+            // The last handle: waits for the writer thread, which writes rerun's footer.
+            drop(stream);
+            std::fs::rename(&partial.0, &path).with_context(context)
         }
     }
 }

@@ -142,6 +142,9 @@ pub struct InputDirs {
     pub flow: Option<PathBuf>,
     /// Holds `<scene>/label/NNNNNN.png` and optionally `<scene>/heat/NNNNNN.png`.
     pub statics: Option<PathBuf>,
+    /// Also read the scene's recorded pushes (`actions.json`) for `on_frame`
+    /// ([`ReplayedFrame::push`], `--rerun`); replaying does not use them.
+    pub pushes: bool,
 }
 
 impl InputDirs {
@@ -235,7 +238,8 @@ pub struct ReplayedFrame<'a> {
     pub frame: &'a CameraFrame,
     /// What the tracker made of it.
     pub observation: &'a Observation,
-    /// The recorded push made from this frame (`actions.json`), if any.
+    /// The recorded push made from this frame (`actions.json`, read when
+    /// [`InputDirs::pushes`]), if any.
     pub push: Option<&'a PushAction>,
 }
 
@@ -288,7 +292,10 @@ pub fn run_scene<S: StaticSegmenter, F: FlowEstimator>(
     out: &Path,
     on_frame: impl FnMut(&ReplayedFrame<'_>),
 ) -> Result<usize, RunError> {
-    let scene = Scene::read_frames(dir)?;
+    let mut scene = Scene::read_frames(dir)?;
+    if inputs.pushes {
+        scene.read_actions(dir)?;
+    }
     let given = inputs.read_scene(dir, &scene)?;
     let masks = replay_scene(tracker, &scene, given, on_frame).map_err(|(frame, source)| {
         RunError::Track {
@@ -446,6 +453,7 @@ Examples:
         let inputs = InputDirs {
             flow: args.flow_dir.clone(),
             statics: args.static_dir.clone(),
+            pushes: args.rerun.is_some(),
         };
         for dir in &scenes {
             super::refuse_output_over_input(dir, &args.out)?;

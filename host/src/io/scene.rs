@@ -563,6 +563,21 @@ fn read_sized<T>(
     )?)
 }
 
+/// `actions.json` of the scene folder `dir` in `files`, checked against its `frames`
+/// frames; a scene of one frame may lack it.
+fn read_actions_in(
+    files: &impl Files,
+    dir: &Path,
+    frames: usize,
+) -> Result<Vec<PushAction>, SceneError> {
+    let path = dir.join(ACTIONS_FILE);
+    if frames == 1 && !files.is_file(&path) {
+        return Ok(Vec::new());
+    }
+    let bytes = files.read(&path).map_err(|e| io_error(&path, e))?;
+    actions_from_json(&path, &bytes, frames - 1)
+}
+
 /// Parses and checks the contents of `actions.json` of a scene with `pushes` pushes (the
 /// rules are in the module docs); `path` only names the file in errors.
 ///
@@ -663,6 +678,16 @@ impl Scene {
         Self::read_parts(&DiskFiles, dir, false)
     }
 
+    /// Reads and checks `actions.json` of the scene folder `dir` into `actions`, as
+    /// [`Scene::read`] does, for a scene [`Scene::read_frames`] read.
+    ///
+    /// # Errors
+    /// As [`Scene::read`], for that file.
+    pub fn read_actions(&mut self, dir: &Path) -> Result<(), SceneError> {
+        self.actions = read_actions_in(&DiskFiles, dir, self.frames())?;
+        Ok(())
+    }
+
     fn read_parts(files: &impl Files, dir: &Path, everything: bool) -> Result<Self, SceneError> {
         if !files.is_dir(dir) {
             return Err(SceneError::Missing {
@@ -703,14 +728,10 @@ impl Scene {
             None => false,
         };
 
-        let actions_path = dir.join(ACTIONS_FILE);
-        let actions: Vec<PushAction> = if !everything || (n == 1 && !files.is_file(&actions_path)) {
-            Vec::new()
+        let actions = if everything {
+            read_actions_in(files, dir, n)?
         } else {
-            let bytes = files
-                .read(&actions_path)
-                .map_err(|e| io_error(&actions_path, e))?;
-            actions_from_json(&actions_path, &bytes, n - 1)?
+            Vec::new()
         };
 
         let poses_path = dir.join(POSES_FILE);

@@ -245,6 +245,7 @@ fn heatmaps_are_read_when_present_and_derived_from_the_labels_otherwise() {
     let dirs = InputDirs {
         flow: None,
         statics: Some(statics),
+        pushes: false,
     };
     let given = dirs.read_scene(&dataset().join(SCENE), &scene).unwrap();
     assert_eq!(given.len(), 2);

@@ -10,7 +10,9 @@
 # CARGO_TARGET_DIR is set, the cargo target; PYTHON (default python3). RISEG_RERUN=1 also
 # builds the CLI with `--features rerun` (the rerun SDK: a long cold build), installs the
 # `rerun-sdk` wheel of the same version and runs tests/test_rerun.py; without it that
-# file is not run, and the script says so.
+# file is not run, and the script says so. RISEG_BIN: test against this riseg binary
+# instead of building one (CI passes the every-feature CLI its feature tests built; with
+# RISEG_RERUN=1 it must have the `rerun` feature).
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -47,8 +49,14 @@ else
   echo "python/test.sh: not running test_rerun.py (RISEG_RERUN=1 runs it)"
 fi
 
-echo "python/test.sh: the riseg CLI the tests compare with"
-(cd .. && cargo build --release --quiet -p riseg --bin riseg "${FEATURES[@]}")
+if [ -n "${RISEG_BIN:-}" ]; then
+  echo "python/test.sh: the riseg CLI the tests compare with: $RISEG_BIN"
+  [ -x "$RISEG_BIN" ] || { echo "python/test.sh: RISEG_BIN=$RISEG_BIN is not an executable" >&2; exit 1; }
+else
+  echo "python/test.sh: the riseg CLI the tests compare with (cargo build)"
+  (cd .. && cargo build --release --quiet -p riseg --bin riseg "${FEATURES[@]}")
+  RISEG_BIN="$CARGO_TARGET_DIR/release/riseg"
+fi
 
 echo "python/test.sh: fresh virtualenv"
 "$PYTHON" -m venv "$WORK/venv"
@@ -58,5 +66,5 @@ echo "python/test.sh: fresh virtualenv"
 
 # Run from the tests folder: `import riseg` must find the installed wheel, not the source.
 cd tests
-RISEG_BIN="$CARGO_TARGET_DIR/release/riseg" "$WORK/venv/bin/python" -m pytest -p no:cacheprovider \
+RISEG_BIN="$RISEG_BIN" "$WORK/venv/bin/python" -m pytest -p no:cacheprovider \
   "${TESTS[@]}" "$@"

@@ -19,7 +19,7 @@ cd "$(dirname "$0")"
 MATURIN_VERSION=1.16.0
 NUMPY_VERSION=2.4.6
 PYTEST_VERSION=8.4.2
-# The same version as the `rerun` crate in Cargo.toml.
+# The same version as the `re_sdk` and `re_sdk_types` crates in Cargo.toml.
 RERUN_SDK_VERSION=0.36.3
 
 CACHE="${RISEG_CI_CACHE:-$HOME/.cache/riseg-ci}"

@@ -88,6 +88,7 @@ mod sink {
     use std::path::{Path, PathBuf};
 
     use anyhow::Context as _;
+    use re_sdk_types::{archetypes, components, datatypes};
     use riseg_core::Intrinsics;
 
     use super::PushArrow;
@@ -105,7 +106,7 @@ mod sink {
     #[derive(Debug)]
     pub struct Recording {
         /// Dropped before `partial`: that ends rerun's writer thread, which closes the file.
-        stream: rerun::RecordingStream,
+        stream: re_sdk::RecordingStream,
         partial: Partial,
         path: PathBuf,
     }
@@ -122,8 +123,8 @@ mod sink {
         }
     }
 
-    fn rgb(c: [u8; 3]) -> rerun::Color {
-        rerun::Color::from_rgb(c[0], c[1], c[2])
+    fn rgb(c: [u8; 3]) -> components::Color {
+        components::Color::from_rgb(c[0], c[1], c[2])
     }
 
     fn size_u32(frame: &CameraFrame) -> anyhow::Result<[u32; 2]> {
@@ -145,7 +146,7 @@ mod sink {
             partial_name.push(name);
             partial_name.push(".partial");
             let partial = Partial(path.with_file_name(partial_name));
-            let stream = rerun::RecordingStreamBuilder::new("riseg")
+            let stream = re_sdk::RecordingStreamBuilder::new("riseg")
                 .save(&partial.0)
                 .with_context(context)?;
             Ok(Self {
@@ -189,7 +190,7 @@ mod sink {
             let rgb_bytes = frame.rgb.as_slice().as_flattened().to_vec();
             rec.log(
                 format!("{cam}/rgb"),
-                &rerun::Image::from_rgb24(rgb_bytes, size),
+                &archetypes::Image::from_rgb24(rgb_bytes, size),
             )?;
             let depth = frame
                 .depth_m
@@ -198,10 +199,10 @@ mod sink {
                 .flat_map(|d| d.to_le_bytes());
             rec.log(
                 format!("{cam}/depth"),
-                &rerun::DepthImage::from_data_type_and_bytes(
+                &archetypes::DepthImage::from_data_type_and_bytes(
                     depth.collect::<Vec<u8>>(),
                     size,
-                    rerun::ChannelDatatype::F32,
+                    datatypes::ChannelDatatype::F32,
                 )
                 .with_meter(1.0),
             )?;
@@ -211,10 +212,10 @@ mod sink {
             ] {
                 let bytes: Vec<u8> = labels.iter().flat_map(|l| l.to_le_bytes()).collect();
                 let format =
-                    rerun::components::ImageFormat::segmentation(size, rerun::ChannelDatatype::U16);
+                    components::ImageFormat::segmentation(size, datatypes::ChannelDatatype::U16);
                 rec.log(
                     format!("{cam}/{name}"),
-                    &rerun::SegmentationImage::new(bytes, format),
+                    &archetypes::SegmentationImage::new(bytes, format),
                 )?;
             }
             if let Some(step) = &observation.step {
@@ -222,7 +223,7 @@ mod sink {
                 let bytes = picture.as_slice().as_flattened().to_vec();
                 rec.log(
                     format!("{cam}/flow"),
-                    &rerun::Image::from_rgb24(bytes, size),
+                    &archetypes::Image::from_rgb24(bytes, size),
                 )?;
                 let mut origins = Vec::with_capacity(2 * step.frames.len());
                 let mut vectors = Vec::with_capacity(2 * step.frames.len());
@@ -238,7 +239,7 @@ mod sink {
                 }
                 rec.log(
                     format!("{root}/body_frames"),
-                    &rerun::Arrows3D::from_vectors(vectors)
+                    &archetypes::Arrows3D::from_vectors(vectors)
                         .with_origins(origins)
                         .with_colors(colours),
                 )?;
@@ -248,20 +249,23 @@ mod sink {
                 let [x1, y1] = p.end_px;
                 rec.log(
                     format!("{cam}/push"),
-                    &rerun::Arrows2D::from_vectors([[x1 - x0, y1 - y0]])
+                    &archetypes::Arrows2D::from_vectors([[x1 - x0, y1 - y0]])
                         .with_origins([[x0 + 0.5, y0 + 0.5]])
                         .with_colors([rgb(PUSH_COLOUR)]),
                 )?;
                 let [a, b] = [p.start_cam_m, p.end_cam_m];
                 rec.log(
                     format!("{root}/push"),
-                    &rerun::Arrows3D::from_vectors([[b[0] - a[0], b[1] - a[1], b[2] - a[2]]])
+                    &archetypes::Arrows3D::from_vectors([[b[0] - a[0], b[1] - a[1], b[2] - a[2]]])
                         .with_origins([a])
                         .with_colors([rgb(PUSH_COLOUR)]),
                 )?;
             }
             for (name, ms) in StageTimes::NAMES.iter().zip(observation.times.values()) {
-                rec.log(format!("{root}/timing/{name}"), &rerun::Scalars::new([ms]))?;
+                rec.log(
+                    format!("{root}/timing/{name}"),
+                    &archetypes::Scalars::new([ms]),
+                )?;
             }
             Ok(())
         }
@@ -269,7 +273,7 @@ mod sink {
         /// What does not change over the frames: axes, class colours, the pinhole.
         fn log_static(&self, root: &str, k: &Intrinsics, size: [u32; 2]) -> anyhow::Result<()> {
             let rec = &self.stream;
-            rec.log_static(root, &rerun::ViewCoordinates::RDF())?;
+            rec.log_static(root, &archetypes::ViewCoordinates::RDF())?;
             let classes: Vec<(u16, String)> = (0..=MAX_CLASS_ID)
                 .map(|id| {
                     (
@@ -282,13 +286,13 @@ mod sink {
                     )
                 })
                 .collect();
-            let context = rerun::AnnotationContext::new(classes.iter().map(|(id, name)| {
+            let context = archetypes::AnnotationContext::new(classes.iter().map(|(id, name)| {
                 let [r, g, b] = label_colour(*id);
-                (*id, name.as_str(), rerun::Rgba32::from_rgb(r, g, b))
+                (*id, name.as_str(), datatypes::Rgba32::from_rgb(r, g, b))
             }));
             rec.log_static(root, &context)?;
             // rerun measures pixels from the top-left corner, riseg from its centre.
-            let pinhole = rerun::Pinhole::from_focal_length_and_resolution(
+            let pinhole = archetypes::Pinhole::from_focal_length_and_resolution(
                 [k.fx, k.fy],
                 [size[0] as f32, size[1] as f32],
             )

@@ -24,6 +24,19 @@ pub fn label_colour(label: u16) -> [u8; 3] {
     [r, g, b].map(|c: f32| (40.0 + 215.0 * c) as u8)
 }
 
+/// The push's colour in pictures.
+pub const PUSH_COLOUR: [u8; 3] = [255, 230, 0];
+
+/// A body frame's colour in pictures: its twist group's (the label colour of `group + 1`)
+/// when that group moved; grey when it joined no group or a static one.
+#[must_use]
+pub fn body_frame_colour(group: Option<u16>, moving: bool) -> [u8; 3] {
+    match group {
+        Some(id) if moving => label_colour(id.saturating_add(1)),
+        _ => [120, 120, 120],
+    }
+}
+
 /// `rgb` with each labelled pixel blended half-way to its label's colour and the label
 /// boundaries (a 4-neighbour with another label) drawn in full colour; background is
 /// dimmed. `labels` must hold one label per pixel; missing labels count as background.

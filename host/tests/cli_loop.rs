@@ -152,3 +152,96 @@ fn run_names_a_missing_scene_folder_and_writes_nothing() {
         .expect("run");
     assert!(!neither.status.success());
 }
+
+#[cfg(not(feature = "rerun"))]
+#[test]
+fn rerun_without_the_feature_says_how_to_build_it_and_writes_nothing() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let rrd = dir.path().join("loop.rrd");
+    for command in ["run", "demo"] {
+        let mut cmd = riseg();
+        cmd.arg(command);
+        if command == "run" {
+            cmd.arg("--scene").arg(dir.path().join("scene_000"));
+        }
+        let out = cmd
+            .arg("--out")
+            .arg(dir.path().join("out"))
+            .arg("--rerun")
+            .arg(&rrd)
+            .output()
+            .expect("run riseg");
+        assert!(!out.status.success(), "{command}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stderr.contains("loop.rrd") && stderr.contains("--features rerun"),
+            "{command}: {stderr}"
+        );
+        assert!(!rrd.exists(), "{command}");
+    }
+}
+
+/// `--rerun` with the feature: an unusable path is an error naming it before anything
+/// runs; a command that fails leaves no file; one that succeeds leaves the file alone.
+#[cfg(feature = "rerun")]
+#[test]
+fn rerun_file_is_named_when_unwritable_and_appears_only_when_complete() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let listing = || {
+        let mut names: Vec<String> = std::fs::read_dir(dir.path())
+            .expect("listing")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    };
+    let unwritable = dir.path().join("no_such_folder").join("demo.rrd");
+    let out = riseg()
+        .arg("demo")
+        .arg("--out")
+        .arg(dir.path().join("demo"))
+        .arg("--rerun")
+        .arg(&unwritable)
+        .output()
+        .expect("run riseg");
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains(&unwritable.display().to_string()),
+        "{stderr}"
+    );
+    assert!(listing().is_empty(), "{:?}", listing());
+
+    let failed = riseg()
+        .args(["run", "--scene"])
+        .arg(dir.path().join("no_such_scene"))
+        .arg("--out")
+        .arg(dir.path().join("pred"))
+        .arg("--rerun")
+        .arg(dir.path().join("run.rrd"))
+        .output()
+        .expect("run riseg");
+    assert!(!failed.status.success());
+    assert!(listing().is_empty(), "{:?}", listing());
+
+    let rrd = dir.path().join("demo.rrd");
+    let out = riseg()
+        .arg("demo")
+        .arg("--out")
+        .arg(dir.path().join("demo"))
+        .arg("--rerun")
+        .arg(&rrd)
+        .output()
+        .expect("run riseg");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(listing(), ["demo", "demo.rrd"]);
+    // rerun's stream header, and its stream footer (written when the file is closed: the
+    // file was renamed into place after that).
+    let bytes = std::fs::read(&rrd).expect("recording");
+    assert!(bytes.starts_with(b"RRF2"), "not an .rrd file");
+    assert!(bytes.ends_with(b"RRF2FOOT\x01\0\0\0"), "no stream footer");
+}

@@ -28,7 +28,7 @@ use crate::{
     cli::config::Settings,
     cli::eval::PushReport,
     cli::models::Models,
-    draw::{Clip, arrow, dot, label_colour, line, overlay_labels},
+    draw::{Clip, PUSH_COLOUR, arrow, body_frame_colour, dot, line, overlay_labels},
     eval::metrics::PushAverages,
     flow::viz::flow_to_rgb,
     io::{
@@ -93,17 +93,18 @@ pub struct DemoReport {
     pub stop: Stop,
 }
 
-/// Runs the demo (module docs); `on_frame(t)` is called as each frame is done.
+/// Runs the demo (module docs); `on_frame` sees each frame as it is done, and an error it
+/// returns ends the demo.
 ///
 /// # Errors
-/// Any failure of the simulator, the loop or writing a file, with what failed.
+/// Any failure of the simulator, the loop, writing a file or `on_frame`, with what failed.
 pub fn run_demo(
     out: &Path,
     seed: u64,
     layout: Layout,
     settings: &Settings,
     models: &Models,
-    mut on_frame: impl FnMut(usize),
+    mut on_frame: impl FnMut(&EpisodeFrame<'_>) -> anyhow::Result<()>,
 ) -> anyhow::Result<DemoReport> {
     use anyhow::Context as _;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
@@ -120,8 +121,7 @@ pub fn run_demo(
         |f: &EpisodeFrame<'_>| {
             let done = demo_frame(out, f).map_err(|e| format!("{e:#}"))?;
             frames.push(done);
-            on_frame(f.t);
-            Ok(())
+            on_frame(f).map_err(|e| format!("{e:#}"))
         },
     )?;
     let report = DemoReport {
@@ -187,9 +187,7 @@ fn remove_stale_frames(out: &Path, frames: usize) -> anyhow::Result<()> {
     Ok(())
 }
 
-const YELLOW: [u8; 3] = [255, 230, 0];
 const WHITE: [u8; 3] = [255, 255, 255];
-const GREY: [u8; 3] = [120, 120, 120];
 
 /// The four-panel picture of one frame (module docs).
 #[must_use]
@@ -211,10 +209,7 @@ pub fn panels(f: &EpisodeFrame<'_>) -> RgbImage {
     if let Some(step) = &obs.step {
         let clip = Clip::all(&frames_panel);
         for g in &step.frames {
-            let colour = match g.group {
-                Some(id) if g.moving => label_colour(id.saturating_add(1)),
-                _ => GREY,
-            };
+            let colour = body_frame_colour(g.group, g.moving);
             let px = g.frame.px_t1;
             line(&mut frames_panel, clip, px[0], px[1], colour, 1);
             line(&mut frames_panel, clip, px[0], px[2], colour, 1);
@@ -244,8 +239,8 @@ fn draw_push(img: &mut RgbImage, intrinsics: &Intrinsics, push: &Push, command: 
     let from = push.start_cam_m - push.direction_cam * approach_m;
     let to = push.start_cam_m + push.direction_cam * push.length_m;
     match (intrinsics.project(&from), intrinsics.project(&to)) {
-        (Some(a), Some(b)) => arrow(img, clip, [a.x, a.y], [b.x, b.y], YELLOW, 3),
-        _ => dot(img, clip, push.start_px, YELLOW, 3),
+        (Some(a), Some(b)) => arrow(img, clip, [a.x, a.y], [b.x, b.y], PUSH_COLOUR, 3),
+        _ => dot(img, clip, push.start_px, PUSH_COLOUR, 3),
     }
 }
 
@@ -441,6 +436,8 @@ mod command {
     use crate::cli::LayoutArg;
     use crate::cli::config::ConfigArg;
     use crate::cli::models::Models;
+    use crate::cli::record::{PushArrow, Recording};
+    use crate::rig::episode::Decision;
 
     pub(in crate::cli) const DEMO_HELP: &str = "\
 Run the whole loop on a simulated scene and write a report (the default command).
@@ -474,6 +471,11 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
         /// Output folder (created if missing; earlier demo files in it are replaced).
         #[arg(long, default_value = "riseg-demo")]
         out: PathBuf,
+        /// Also record every frame to FILE (a rerun .rrd: images, masks, body frames,
+        /// pushes, flow, stage timings on the `push` timeline); needs riseg built with
+        /// `--features rerun`.
+        #[arg(long, value_name = "FILE.rrd")]
+        rerun: Option<PathBuf>,
         #[command(flatten)]
         models: Models,
         #[command(flatten)]
@@ -487,6 +489,7 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
                 seed: None,
                 out: PathBuf::from("riseg-demo"),
                 models: Models::default(),
+                rerun: None,
                 config: ConfigArg::default(),
             }
         }
@@ -504,14 +507,25 @@ Example: riseg demo --seed 3 --out /tmp/riseg-demo";
         let seed = args
             .seed
             .unwrap_or_else(|| crate::cli::demo::default_seed(layout));
+        let recording = args.rerun.as_deref().map(Recording::create).transpose()?;
         let report =
-            crate::cli::demo::run_demo(&args.out, seed, layout, &settings, &args.models, |t| {
+            crate::cli::demo::run_demo(&args.out, seed, layout, &settings, &args.models, |f| {
                 bar.set_message(format!(
-                    "frame {t} done; pushing, rendering frame {}",
-                    t + 1
+                    "frame {} done; pushing, rendering frame {}",
+                    f.t,
+                    f.t + 1
                 ));
+                let Some(recording) = &recording else {
+                    return Ok(());
+                };
+                let push = match &f.decision {
+                    Decision::Push { push, .. } => Some(PushArrow::from_push(push)),
+                    Decision::Stop(_) => None,
+                };
+                recording.frame("demo", f.t, f.frame, f.observation, push.as_ref())
             })
             .with_context(|| format!("demo on simulated {layout} scene {seed}"))?;
+        recording.map(Recording::finish).transpose()?;
         bar.finish_and_clear();
         say!(
             "riseg demo: simulated {layout} scene {}, {} pushes; {}.\n",

@@ -22,6 +22,7 @@ pub mod generate;
 pub mod live;
 pub mod models;
 pub mod preview;
+pub mod record;
 pub mod run;
 mod segment;
 

@@ -62,11 +62,12 @@ use crate::{
         read_gray8, read_sized, write_gray16,
     },
     io::scene::{
-        FLOW_DIR, HEAT_DIR, LABEL_DIR, Scene, SceneCamera, SceneError, frame_file, frame_file_name,
+        FLOW_DIR, HEAT_DIR, LABEL_DIR, PushAction, Scene, SceneCamera, SceneError, frame_file,
+        frame_file_name,
     },
-    rig::camera::SceneReplay,
+    rig::camera::{CameraFrame, SceneReplay},
     rig::episode::action_motion_px,
-    rig::tracker::{GivenInputs, TrackError, Tracker},
+    rig::tracker::{GivenInputs, Observation, TrackError, Tracker},
     segment::{HEAT_CERTAIN, Segmentation, StaticSegmenter},
 };
 
@@ -226,12 +227,25 @@ fn renumber(labels: &mut [u16]) {
     }
 }
 
+/// One replayed frame, as `on_frame` of [`replay_scene`] sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct ReplayedFrame<'a> {
+    /// Frame index: the scene after `t` pushes.
+    pub t: usize,
+    /// The frame.
+    pub frame: &'a CameraFrame,
+    /// What the tracker made of it.
+    pub observation: &'a Observation,
+    /// The recorded push made from this frame (`actions.json`), if the scene has one.
+    pub push: Option<&'a PushAction>,
+}
+
 /// Replays a recorded scene (the pushes already happened) through `tracker` from frame 0:
 /// the accumulated mask of every frame, in order. Frame `t` uses `given[t]`
 /// ([`Tracker::observe_given`]); frames past the end of `given` compute everything. The
 /// recorded push that made frame `t` (`scene.actions`) is the flow's motion hint
 /// ([`action_motion_px`]), as it was in the closed loop that recorded it.
-/// `on_frame(t)` is called after frame `t`.
+/// `on_frame` sees frame `t` after it is done.
 ///
 /// # Errors
 /// The frame that failed and the [`TrackError`].
@@ -239,7 +253,7 @@ pub fn replay_scene<S: StaticSegmenter, F: FlowEstimator>(
     tracker: &mut Tracker<S, F>,
     scene: &Scene,
     given: Vec<GivenInputs>,
-    mut on_frame: impl FnMut(usize),
+    mut on_frame: impl FnMut(&ReplayedFrame<'_>),
 ) -> Result<Vec<Vec<u16>>, (usize, TrackError)> {
     tracker.reset();
     let mut given = given.into_iter();
@@ -256,20 +270,23 @@ pub fn replay_scene<S: StaticSegmenter, F: FlowEstimator>(
             .and_then(|p| scene.actions.get(p))
             .and_then(|a| action_motion_px(a, &intrinsics));
         tracker.expect_motion_px(hint);
-        masks.push(
-            tracker
-                .observe_given(frame, inputs)
-                .map_err(|e| (t, e))?
-                .mask,
-        );
-        on_frame(t);
+        let observation = tracker.observe_given(frame, inputs).map_err(|e| (t, e))?;
+        if let Some(frame) = tracker.last_frame() {
+            on_frame(&ReplayedFrame {
+                t,
+                frame,
+                observation: &observation,
+                push: scene.actions.get(t),
+            });
+        }
+        masks.push(observation.mask);
     }
     Ok(masks)
 }
 
 /// Reads the scene folder `dir` and the inputs `inputs` gives for it, replays it, and
 /// writes its masks to `out/<dir's name>/label/NNNNNN.png`; returns how many were written.
-/// `on_frame(t)` is called as frame `t` is done.
+/// `on_frame` sees each frame as it is done ([`replay_scene`]).
 ///
 /// # Errors
 /// [`RunError`] naming the folder or file that failed; no mask of the scene is written
@@ -279,7 +296,7 @@ pub fn run_scene<S: StaticSegmenter, F: FlowEstimator>(
     dir: &Path,
     inputs: &InputDirs,
     out: &Path,
-    on_frame: impl FnMut(usize),
+    on_frame: impl FnMut(&ReplayedFrame<'_>),
 ) -> Result<usize, RunError> {
     let mut scene = Scene::read_frames(dir)?;
     // The recorded pushes give the flow its motion hints (`replay_scene`); a scene without
@@ -319,6 +336,7 @@ mod command {
 
     use crate::cli::config::ConfigArg;
     use crate::cli::models::Models;
+    use crate::cli::record::{PushArrow, Recording};
     use crate::cli::run::{InputDirs, run_scene};
     use anyhow::{Context as _, bail};
     use clap::Args;
@@ -403,6 +421,11 @@ Examples:
         /// instead of segmenting.
         #[arg(long, value_name = "STATIC", conflicts_with = "segmenter")]
         static_dir: Option<PathBuf>,
+        /// Also record every frame to FILE (a rerun .rrd: images, masks, body frames, the
+        /// recorded pushes, flow, stage timings on the `push` timeline, one root entity per
+        /// scene); needs riseg built with `--features rerun`.
+        #[arg(long, value_name = "FILE.rrd")]
+        rerun: Option<PathBuf>,
         #[command(flatten)]
         models: Models,
         #[command(flatten)]
@@ -440,11 +463,24 @@ Examples:
         for dir in &scenes {
             super::refuse_output_over_input(dir, &args.out)?;
         }
+        let recording = args.rerun.as_deref().map(Recording::create).transpose()?;
+        // rerun reports a failed write at the latest on `finish`; the first error that
+        // logging a frame returned is kept and ends the run after its scene.
+        let mut log_error = None;
         let mut frames = 0;
         for (done, dir) in scenes.iter().enumerate() {
             let name = dir.file_name().unwrap_or(dir.as_os_str()).to_string_lossy();
-            frames += run_scene(&mut tracker, dir, &inputs, &args.out, |t| {
-                bar.set_message(format!("{name}: frame {t}"));
+            frames += run_scene(&mut tracker, dir, &inputs, &args.out, |f| {
+                bar.set_message(format!("{name}: frame {}", f.t));
+                let Some(recording) = &recording else {
+                    return;
+                };
+                let push = f
+                    .push
+                    .and_then(|a| PushArrow::from_action(a, &f.frame.intrinsics));
+                if let Err(e) = recording.frame(&name, f.t, f.frame, f.observation, push.as_ref()) {
+                    log_error.get_or_insert(e);
+                }
             })
             .with_context(|| match done {
                 0 => "no masks written".to_owned(),
@@ -453,8 +489,12 @@ Examples:
                     args.out.display()
                 ),
             })?;
+            if let Some(e) = log_error.take() {
+                return Err(e);
+            }
             bar.inc(1);
         }
+        recording.map(Recording::finish).transpose()?;
         bar.finish_and_clear();
         say!(
             "wrote {frames} masks of {} scenes to {}\n",

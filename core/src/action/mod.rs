@@ -43,8 +43,9 @@
 //!      cluster: pixel centre the mean of its samples' pixels, 3-D centre the mean of
 //!      their points;
 //!    - a longer region is more than one object and is split into `n₁ × n₂` pieces,
-//!      `n₁ = round(L₁ / region_cell_m)` clamped to `2..=4` and `n₂ = round(L₂ /
-//!      region_cell_m)` clamped to `1..=2` and to at most `4 / n₁`. The pieces start at
+//!      `n₁ = round(L₁ / region_cell_m)` clamped to `2..=5` and `n₂ = round(L₂ /
+//!      region_cell_m)` clamped to `1..=2` and to at most `6 / n₁` (a 2 × 3 pack is
+//!      six pieces, a row of five five). The pieces start at
 //!      the cell centres of an `n₁ × n₂` grid laid along the principal axes of the
 //!      samples' pixels (spanning `√(12 λ)` pixels along each axis) and are refined by
 //!      Lloyd iterations over the region's samples in pixel coordinates (stopping rule of

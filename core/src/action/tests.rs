@@ -445,19 +445,41 @@ fn one_object_is_one_cluster_and_a_region_much_longer_than_an_object_is_split() 
     assert_eq!(report.certain().len(), 1, "{:?}", report.certain());
     let c = report.certain()[0];
     assert!((c.centre_px[0] - 112.0).abs() < 0.5 && (c.centre_px[1] - 112.0).abs() < 0.5);
-    // A 20 cm × 5 cm bar (longer than region_max_len_m): round(20 / 6) = 3 pieces
-    // along it, about 6.7 cm apart.
+    // A 15 cm × 5 cm bar (longer than region_max_len_m): round(15 / 5) = 3 pieces
+    // along it, 5 cm apart.
     let mut s = Scene::new();
-    s.rect(100, 100, 200, 125, 255);
+    s.rect(100, 100, 175, 125, 255);
     let report = s.run(&cfg).unwrap();
     let mut xs: Vec<Real> = report.certain().iter().map(|c| c.centre_px[0]).collect();
     xs.sort_by(Real::total_cmp);
     assert_eq!(xs.len(), 3, "{:?}", report.certain());
-    for (x, want) in xs.iter().zip([116.5, 149.5, 182.5]) {
+    for (x, want) in xs.iter().zip([112.0, 137.0, 162.0]) {
         assert!((x - want).abs() < 3.0, "{xs:?}");
     }
     for c in report.certain() {
         assert!((c.centre_px[1] - 112.0).abs() < 1.0);
+    }
+}
+
+#[test]
+fn a_2x3_pack_with_no_cut_is_split_into_six_pieces() {
+    // Six 5 cm boxes, three along x and two along y, whose cuts the heatmap missed: one
+    // certain region of 15 cm × 10 cm, split 3 × 2 (one piece per box), not 3 × 1.
+    let mut s = Scene::new();
+    s.rect(100, 100, 175, 150, 255);
+    let report = s.run(&Config::PAPER).unwrap();
+    let certain = report.certain();
+    assert_eq!(certain.len(), 6, "{certain:?}");
+    for (x, y) in [112.0, 137.0, 162.0]
+        .into_iter()
+        .flat_map(|x| [112.0, 137.0].map(|y| (x, y)))
+    {
+        assert!(
+            certain
+                .iter()
+                .any(|c| { (c.centre_px[0] - x).abs() < 3.0 && (c.centre_px[1] - y).abs() < 3.0 }),
+            "no piece near ({x}, {y}): {certain:?}"
+        );
     }
 }
 

@@ -130,7 +130,8 @@ pub struct Config {
     /// object less its rim and uncertain bands; one of at most 7 cm stays below 7 cm.
     pub region_max_len_m: Real,
     /// Size of one object's certain region when an oversized region is split, metres:
-    /// `round(L / region_cell_m)` pieces along an axis of length `L`.
+    /// `round(L / region_cell_m)` pieces along an axis of length `L`. A packed box of
+    /// 4-7 cm leaves a certain region of about 3.5-6.5 cm.
     pub region_cell_m: Real,
     /// Largest metric distance between the two certain cluster centres of a pair (paper
     /// `d_a`), metres.
@@ -186,7 +187,7 @@ impl Config {
         kmeans_iters: 20,
         region_min_area_m2: 0.5e-4,
         region_max_len_m: 0.08,
-        region_cell_m: 0.06,
+        region_cell_m: 0.05,
         pair_max_m: 0.10,
         uncertain_max_m: 0.03,
         push_len_m: 0.02,

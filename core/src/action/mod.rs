@@ -43,8 +43,9 @@
 //!      cluster: pixel centre the mean of its samples' pixels, 3-D centre the mean of
 //!      their points;
 //!    - a longer region is more than one object and is split into `n₁ × n₂` pieces,
-//!      `n₁ = round(L₁ / region_cell_m)` clamped to `2..=4` and `n₂ = round(L₂ /
-//!      region_cell_m)` clamped to `1..=2` and to at most `4 / n₁`. The pieces start at
+//!      `n₁ = round(L₁ / region_cell_m)` clamped to `2..=5` and `n₂ = round(L₂ /
+//!      region_cell_m)` clamped to `1..=2` and to at most `6 / n₁` (a 2 × 3 pack is
+//!      six pieces, a row of five five). The pieces start at
 //!      the cell centres of an `n₁ × n₂` grid laid along the principal axes of the
 //!      samples' pixels (spanning `√(12 λ)` pixels along each axis) and are refined by
 //!      Lloyd iterations over the region's samples in pixel coordinates (stopping rule of
@@ -92,8 +93,18 @@
 //!      distance) is table, which a line through the point where two rounded objects
 //!      touch clips at their rims. Two objects with table between them do not touch.
 //!
-//!    Qualifying pairs are ranked by the distance of their uncertain centre, then by the
-//!    distance between their centres, then by `(i, j)` in index order.
+//!    With [`Config::push_carry_frac`] above `0` (beyond the paper) a pair that meets
+//!    every condition but the second also qualifies, as a *seam pair*, when its straight
+//!    line crosses an uncertain pixel (a band or a cut of the heatmap lies between the
+//!    two) and some uncertain centre exists (the nearest one, farther than `d_b`, is its
+//!    uncertain centre): k-means puts the uncertain centres where most uncertain pixels
+//!    are, in the wide band that an earlier push opened between two columns of a pack,
+//!    and then finds none beside the faint cuts between the boxes of one column. A seam
+//!    pair is pushed only when its push splits a segment (step 8).
+//!
+//!    Qualifying pairs are ranked by the distance of their uncertain centre (so every
+//!    seam pair after the others), then by the distance between their centres, then by
+//!    `(i, j)` in index order.
 //! 8. **Which pair and cluster are pushed.** Every pair draws a side from the PRNG (one
 //!    draw per pair, used for both of its clusters). The *candidates* are the pushes of
 //!    step 9 in the paper's order: pairs in rank order; in a pair, the cluster with fewer
@@ -115,10 +126,11 @@
 //!      segment, or only objects already apart, scores `0`.
 //!
 //!    The candidate with the highest score is made, then the one that moves the fewest
-//!    clusters, then the earliest. When no candidate scores above `0` (every object
-//!    already has a label of its own, or the mask is background), the first candidate is
-//!    made, as in the paper. The pushed cluster `C_i` and its pair are reported with the
-//!    push; when no qualifying pair has a push, the best pair is reported without one.
+//!    clusters, then the earliest. A seam pair's candidate that scores `0` is dropped.
+//!    When no candidate scores above `0` (every object already has a label of its own,
+//!    or the mask is background), the first candidate is made, as in the paper. The
+//!    pushed cluster `C_i` and its pair are reported with the push; when no qualifying
+//!    pair has a push, the best pair that is not a seam pair is reported without one.
 //! 9. **Push point.** The *region* of certain cluster `q` is the set of certain pixels in
 //!    `q`'s region of step 3 whose nearest pixel centre among that region's clusters is
 //!    `q`. From the pixel centre `C_i` the walk goes in 0.5 px steps along the line
@@ -291,7 +303,8 @@ pub struct Pair {
     pub uncertain: usize,
     /// 3-D distance between the two certain centres, metres.
     pub pair_dist_m: Real,
-    /// 3-D distance from the uncertain centre to the pair's segment, metres.
+    /// 3-D distance from the uncertain centre to the pair's segment, metres; above
+    /// [`Config::uncertain_max_m`] for a seam pair (module docs, step 7).
     pub uncertain_dist_m: Real,
 }
 
@@ -501,7 +514,7 @@ pub fn find_action(
     let pairs = rank_pairs(&map, &uncertain, cfg);
     let (pair, push) = match choose_push(&map, mask, &pairs, intrinsics, cfg, &mut rng) {
         Some((pair, push)) => (Some(pair), Some(push)),
-        None => (pairs.first().copied(), None),
+        None => (pairs.iter().find(|p| !is_seam(p, cfg)).copied(), None),
     };
     Ok(ActionReport {
         certain: regions.clusters,

@@ -68,18 +68,18 @@ impl RegionMap<'_> {
 /// Whether the straight line between the pixel centres of clusters `i` and `j` stays on
 /// object (module docs, step 7): every pixel on it is in `i` or `j`, uncertain, or certain
 /// in no cluster, except at most [`LINE_TABLE_MAX_M`] of it (with the line's length taken
-/// as `pair_dist_m`) on the table; none is off the image or in a third cluster.
-fn line_stays_on_objects(map: &RegionMap<'_>, i: usize, j: usize, pair_dist_m: Real) -> bool {
-    let (Some(a), Some(b)) = (map.clusters.get(i), map.clusters.get(j)) else {
-        return false;
-    };
+/// as `pair_dist_m`) on the table; none is off the image or in a third cluster. `None`
+/// when it does not; else whether a pixel on it is uncertain (the line crosses a band or
+/// cut of the heatmap).
+fn line_on_objects(map: &RegionMap<'_>, i: usize, j: usize, pair_dist_m: Real) -> Option<bool> {
+    let (a, b) = (map.clusters.get(i)?, map.clusters.get(j)?);
     let (dx, dy) = (
         b.centre_px[0] - a.centre_px[0],
         b.centre_px[1] - a.centre_px[1],
     );
     let len = sqrt(dx * dx + dy * dy);
     if !len.is_finite() {
-        return false;
+        return None;
     }
     // One step per pixel of length; centres lie on the image, so the line is shorter
     // than width + height.
@@ -89,6 +89,7 @@ fn line_stays_on_objects(map: &RegionMap<'_>, i: usize, j: usize, pair_dist_m: R
         .min(width.saturating_add(height));
     let step_m = pair_dist_m / steps.max(1) as Real;
     let mut table_m = 0.0;
+    let mut crossed = false;
     for s in 0..=steps {
         let t = s as Real / steps.max(1) as Real;
         let pixel = (
@@ -97,17 +98,28 @@ fn line_stays_on_objects(map: &RegionMap<'_>, i: usize, j: usize, pair_dist_m: R
         );
         match map.at(pixel.0, pixel.1) {
             Px::Cluster(q) if q == i || q == j => {}
-            Px::Object => {}
+            Px::Object => {
+                crossed |= map
+                    .heatmap
+                    .at(pixel.0, pixel.1)
+                    .is_some_and(|h| h < map.cfg.certain_from);
+            }
             Px::Background => {
                 table_m += step_m;
                 if table_m.is_nan() || table_m > LINE_TABLE_MAX_M {
-                    return false;
+                    return None;
                 }
             }
-            Px::Cluster(_) | Px::Off => return false,
+            Px::Cluster(_) | Px::Off => return None,
         }
     }
-    true
+    Some(crossed)
+}
+
+/// Whether `pair` qualified only as a seam pair: no uncertain centre within
+/// [`Config::uncertain_max_m`] of it (module docs, step 7).
+pub(super) fn is_seam(pair: &Pair, cfg: &Config) -> bool {
+    pair.uncertain_dist_m > cfg.uncertain_max_m || pair.uncertain_dist_m.is_nan()
 }
 
 /// Whether `i` and `j` are neighbours in the relative neighbourhood graph of the certain
@@ -155,16 +167,24 @@ pub(super) fn rank_pairs(
             let mut nearest: Option<(Real, usize)> = None;
             for (n, u) in uncertain.iter().enumerate() {
                 let d = segment_dist(&u.centre_cam_m, &ci.centre_cam_m, &cj.centre_cam_m);
-                if d <= cfg.uncertain_max_m && nearest.is_none_or(|(b, _)| d < b) {
+                if !d.is_nan() && nearest.is_none_or(|(b, _)| d < b) {
                     nearest = Some((d, n));
                 }
             }
             let Some((uncertain_dist_m, n)) = nearest else {
                 continue;
             };
-            if !relative_neighbours(certain, i, j) || !line_stays_on_objects(map, i, j, pair_dist_m)
-            {
+            // Beyond d_b only a seam pair, with the push choice of step 8 on.
+            let seam = uncertain_dist_m > cfg.uncertain_max_m;
+            if seam && cfg.push_carry_frac <= 0.0 {
                 continue;
+            }
+            if !relative_neighbours(certain, i, j) {
+                continue;
+            }
+            match line_on_objects(map, i, j, pair_dist_m) {
+                Some(crossed) if crossed || !seam => {}
+                _ => continue,
             }
             let (pushed, other) = if cj.samples < ci.samples {
                 (j, i)

@@ -254,6 +254,10 @@ pub(super) fn choose_push(
                 let gap_px = CARRY_GAP_MAX_M / m_per_px;
                 let moved = moved_set(map, pushed, dir, cfg.push_carry_frac * len, gap_px);
                 let split = splits(&labels, moved);
+                // A seam pair is only pushed to split a segment (module docs, step 7).
+                if split == 0 && is_seam(pair, cfg) {
+                    continue;
+                }
                 // With no split, every candidate ties and the first stays.
                 let key = if split > 0 {
                     (split, u32::MAX - moved.count_ones())

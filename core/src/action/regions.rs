@@ -13,9 +13,9 @@ use crate::{
 };
 
 /// Most pieces one oversized certain region is split into.
-const MAX_PIECES: usize = 4;
+const MAX_PIECES: usize = 6;
 /// Most pieces along a region's long axis.
-const MAX_PIECES_LONG: usize = 4;
+const MAX_PIECES_LONG: usize = 5;
 /// Most pieces along a region's short axis.
 const MAX_PIECES_SHORT: usize = 2;
 /// Most iterations of the eigen-solver for a region's 3-D covariance.

@@ -192,6 +192,52 @@ fn ranked(s: &Scene, cfg: &Config, uncertain: &[Cluster]) -> (Vec<Cluster>, Vec<
     (found.clusters.to_vec(), pairs.to_vec())
 }
 
+/// The push FindAction makes on `s` with `mask`, against the given uncertain centres
+/// (instead of k-means ones), and the certain clusters.
+fn chosen(
+    s: &Scene,
+    mask: &[u16],
+    cfg: &Config,
+    uncertain: &[Cluster],
+) -> (Vec<Cluster>, Option<(Pair, Push)>) {
+    let k = intrinsics();
+    let heat = ImageView::packed(W, H, &s.heat).unwrap();
+    let depth = ImageView::packed(W, H, &s.depth).unwrap();
+    let mask = ImageView::packed(W, H, mask).unwrap();
+    let len = ActionScratchLen::for_config(cfg, W, H);
+    let (mut cbuf, mut ubuf) = (vec![0.0; len.certain], vec![0.0; len.uncertain]);
+    let mut rows = vec![0u32; len.row_counts];
+    let mut runs_buf = vec![0u32; len.runs];
+    let mut row_runs = vec![0u32; len.row_runs];
+    let mut nearest = vec![0u32; len.nearest];
+    let mut cp = Planes::split(&mut cbuf, len.samples).unwrap();
+    let mut up = Planes::split(&mut ubuf, len.samples).unwrap();
+    let mut rng = Pcg32::new(cfg.seed);
+    let (nc, _) = sample_classes(&heat, &depth, cfg, &mut rng, &mut cp, &mut up, &mut rows);
+    let mut runs = RunPlanes::split(&mut runs_buf, len.max_runs).unwrap();
+    let n_runs = label_runs(&heat, cfg.certain_from, &mut runs, &mut row_runs);
+    let found = certain_clusters(
+        &mut runs,
+        n_runs,
+        &row_runs,
+        &cp.prefix(nc),
+        &mut nearest,
+        &k,
+        cfg,
+    );
+    let map = RegionMap {
+        heatmap: &heat,
+        runs: runs.view(n_runs),
+        row_runs: &row_runs,
+        clusters: &found.clusters,
+        region_of: &found.region_of,
+        cfg,
+    };
+    let pairs = rank_pairs(&map, uncertain, cfg);
+    let push = choose_push(&map, &mask, &pairs, &k, cfg, &mut rng);
+    (found.clusters.to_vec(), push)
+}
+
 /// Sorted cluster indices of a pair.
 fn members(p: &Pair) -> [usize; 2] {
     [p.pushed.min(p.other), p.pushed.max(p.other)]
@@ -244,8 +290,16 @@ fn the_pair_nearest_an_uncertain_centre_wins_over_another_qualifying_pair() {
 fn no_pair_without_an_uncertain_centre_within_d_b() {
     let s = three_blobs();
     let cfg = Config::PAPER;
-    // 3.4 cm beside the A–B segment: farther than d_b = 3 cm.
+    // 3.4 cm beside the A–B segment: farther than d_b = 3 cm. The A–B line crosses the
+    // band, so the pair is a seam pair (pushed only to split a segment); the paper's
+    // choice has no pair.
     let (_, pairs) = ranked(&s, &cfg, &[uncertain_at(130.0, 147.0)]);
+    assert!(pairs.iter().all(|p| is_seam(p, &cfg)), "{pairs:?}");
+    let paper = Config {
+        push_carry_frac: 0.0,
+        ..cfg
+    };
+    let (_, pairs) = ranked(&s, &paper, &[uncertain_at(130.0, 147.0)]);
     assert!(pairs.is_empty(), "{pairs:?}");
     // 2.6 cm beside it: within d_b.
     let (_, pairs) = ranked(&s, &cfg, &[uncertain_at(130.0, 143.0)]);
@@ -391,19 +445,41 @@ fn one_object_is_one_cluster_and_a_region_much_longer_than_an_object_is_split() 
     assert_eq!(report.certain().len(), 1, "{:?}", report.certain());
     let c = report.certain()[0];
     assert!((c.centre_px[0] - 112.0).abs() < 0.5 && (c.centre_px[1] - 112.0).abs() < 0.5);
-    // A 20 cm × 5 cm bar (longer than region_max_len_m): round(20 / 6) = 3 pieces
-    // along it, about 6.7 cm apart.
+    // A 15 cm × 5 cm bar (longer than region_max_len_m): round(15 / 5) = 3 pieces
+    // along it, 5 cm apart.
     let mut s = Scene::new();
-    s.rect(100, 100, 200, 125, 255);
+    s.rect(100, 100, 175, 125, 255);
     let report = s.run(&cfg).unwrap();
     let mut xs: Vec<Real> = report.certain().iter().map(|c| c.centre_px[0]).collect();
     xs.sort_by(Real::total_cmp);
     assert_eq!(xs.len(), 3, "{:?}", report.certain());
-    for (x, want) in xs.iter().zip([116.5, 149.5, 182.5]) {
+    for (x, want) in xs.iter().zip([112.0, 137.0, 162.0]) {
         assert!((x - want).abs() < 3.0, "{xs:?}");
     }
     for c in report.certain() {
         assert!((c.centre_px[1] - 112.0).abs() < 1.0);
+    }
+}
+
+#[test]
+fn a_2x3_pack_with_no_cut_is_split_into_six_pieces() {
+    // Six 5 cm boxes, three along x and two along y, whose cuts the heatmap missed: one
+    // certain region of 15 cm × 10 cm, split 3 × 2 (one piece per box), not 3 × 1.
+    let mut s = Scene::new();
+    s.rect(100, 100, 175, 150, 255);
+    let report = s.run(&Config::PAPER).unwrap();
+    let certain = report.certain();
+    assert_eq!(certain.len(), 6, "{certain:?}");
+    for (x, y) in [112.0, 137.0, 162.0]
+        .into_iter()
+        .flat_map(|x| [112.0, 137.0].map(|y| (x, y)))
+    {
+        assert!(
+            certain
+                .iter()
+                .any(|c| { (c.centre_px[0] - x).abs() < 3.0 && (c.centre_px[1] - y).abs() < 3.0 }),
+            "no piece near ({x}, {y}): {certain:?}"
+        );
     }
 }
 
@@ -1049,4 +1125,82 @@ fn splits_count_pairs_of_one_label_that_one_push_separates() {
     assert_eq!(push::splits(&labels, 0b00_0011), 0);
     assert_eq!(push::splits(&labels, 0), 0);
     assert_eq!(push::splits(&[7, 7, 7], 0b010), 2);
+}
+
+/// Two columns of three boxes (34 × 30 px, about 6.8 × 6 cm) along y, already sheared
+/// apart by an earlier push: a wide uncertain band (2 cm) between the columns, one-pixel
+/// uncertain cuts between the boxes of a column, a rim; the mask gives each column one
+/// label. Returns the scene, the mask and the box centres (column, row).
+fn columns_2x3() -> (Scene, Vec<u16>, [[[Real; 2]; 3]; 2]) {
+    let (x0, y0) = (100usize, 60usize);
+    let (box_w, box_h, band) = (34usize, 30usize, 10usize);
+    let x1 = x0 + 2 * box_w + band;
+    let y1 = y0 + 3 * box_h;
+    let mut s = Scene::new();
+    s.rect(x0 - 2, y0 - 2, x1 + 2, y1 + 2, 100)
+        .rect(x0, y0, x1, y1, 255)
+        .rect(x0 + box_w, y0, x0 + box_w + band, y1, 130);
+    for r in 1..3 {
+        s.rect(x0, y0 + r * box_h, x1, y0 + r * box_h + 1, 130);
+    }
+    let mut mask = vec![0u16; W * H];
+    for y in y0 - 2..y1 + 2 {
+        for x in x0 - 2..x1 + 2 {
+            mask[y * W + x] = if x < x0 + box_w + band / 2 { 1 } else { 2 };
+        }
+    }
+    let mut centres = [[[0.0; 2]; 3]; 2];
+    for (c, col) in centres.iter_mut().enumerate() {
+        for (r, centre) in col.iter_mut().enumerate() {
+            let x = x0 + c * (box_w + band);
+            let y = y0 + r * box_h;
+            *centre = [
+                x as Real + (box_w as Real - 1.0) / 2.0,
+                y as Real + (box_h as Real - 1.0) / 2.0,
+            ];
+        }
+    }
+    (s, mask, centres)
+}
+
+#[test]
+fn a_column_with_no_uncertain_centre_beside_it_is_still_split_across_its_cuts() {
+    // The heatmap's uncertain centres lie in the wide band between the columns (as
+    // k-means puts them when the band holds most uncertain pixels): more than d_b from
+    // the segment between two boxes of one column. The only pairs within d_b are across
+    // the band, and their pushes (along a column) move a whole column: they split
+    // nothing. Each column's boxes are seam pairs: the line between them crosses a cut.
+    // A push across the columns from outside splits both.
+    let (s, mask, centres) = columns_2x3();
+    let band_x = 100.0 + 34.0 + 4.5;
+    let uncertain = [
+        uncertain_at(band_x, 75.0),
+        uncertain_at(band_x, 105.0),
+        uncertain_at(band_x, 135.0),
+    ];
+    let cfg = Config::PAPER;
+    for seed in 0..16 {
+        let cfg = Config { seed, ..cfg };
+        let (certain, push) = chosen(&s, &mask, &cfg, &uncertain);
+        assert_eq!(certain.len(), 6, "seed {seed}: one cluster per box");
+        for col in &centres {
+            for c in col {
+                assert!(find(&certain, c[0], c[1]).is_some(), "seed {seed}: {c:?}");
+            }
+        }
+        let (pair, push) = push.expect("a push");
+        assert!(is_seam(&pair, &cfg), "seed {seed}: {pair:?}");
+        // Across the columns (along x), from outside the pack.
+        assert!(push.direction_cam.x.abs() > 0.99, "seed {seed}: {push:?}");
+        assert!(s.heat_at(push.start_px) < 255, "seed {seed}: {push:?}");
+    }
+    // The paper's choice has no seam pairs: it pushes along a column.
+    let paper = Config {
+        push_carry_frac: 0.0,
+        ..cfg
+    };
+    let (_, push) = chosen(&s, &mask, &paper, &uncertain);
+    let (pair, push) = push.expect("a push");
+    assert!(!is_seam(&pair, &paper));
+    assert!(push.direction_cam.y.abs() > 0.99, "{push:?}");
 }

@@ -160,6 +160,7 @@ impl ClassicalSegmenter {
                     .keep_inside([px, py, pz], p.hull_margin_m, object);
             });
 
+        let object_rows = geometry::object_rows(w, &s.object);
         let crease_input = geometry::CreaseInput {
             w,
             h,
@@ -167,6 +168,7 @@ impl ClassicalSegmenter {
             pts: &s.pts,
             nrm: &s.nrm,
             object: &s.object,
+            object_rows: object_rows.clone(),
         };
         geometry::creases(&crease_input, p, &mut s.crease);
         geometry::drop_small_regions(
@@ -188,6 +190,7 @@ impl ClassicalSegmenter {
                 nrm: &s.nrm,
                 crease: &s.crease,
                 object: &s.object,
+                object_rows,
                 px_area_m2: &s.px_area_m2,
             },
             p,

@@ -455,8 +455,19 @@ fn normals_row(
     }
 }
 
+/// The rows `y0..y1` outside which no pixel of `object` (rows of `w` pixels) is set;
+/// empty if none is.
+pub(super) fn object_rows(w: usize, object: &[bool]) -> core::ops::Range<usize> {
+    let any = |row: &[bool]| row.iter().fold(false, |a, &b| a | b);
+    let Some(y0) = object.chunks_exact(w).position(any) else {
+        return 0..0;
+    };
+    let after = object.chunks_exact(w).rev().position(any).unwrap_or(0);
+    y0..object.len() / w - after
+}
+
 /// Inputs of [`creases`]: `width·height` buffers.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub(super) struct CreaseInput<'a> {
     pub(super) w: usize,
     pub(super) h: usize,
@@ -464,6 +475,8 @@ pub(super) struct CreaseInput<'a> {
     pub(super) pts: &'a [P3],
     pub(super) nrm: &'a [P3],
     pub(super) object: &'a [bool],
+    /// The rows outside which `object` is all `false` ([`object_rows`]).
+    pub(super) object_rows: core::ops::Range<usize>,
 }
 
 /// Concave-crease flags ([`CREASE_SOFT`], [`CREASE_BLOCK`]) per object pixel.
@@ -486,6 +499,7 @@ pub(super) fn creases(inp: &CreaseInput<'_>, params: &SegmenterParams, out: &mut
         pts,
         nrm,
         object,
+        ref object_rows,
     } = *inp;
     let r = params.crease_radius_px;
     let reach = r + params.normal_radius_px + params.smooth_radius_px;
@@ -518,22 +532,28 @@ pub(super) fn creases(inp: &CreaseInput<'_>, params: &SegmenterParams, out: &mut
             CREASE_SOFT
         }
     };
-    out.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-        for (x, out) in out.iter_mut().enumerate() {
-            let i = y * w + x;
-            if !object[i] {
-                continue;
+    // Rows without object pixels stay zero.
+    let rows = object_rows.start * w..object_rows.end * w;
+    out[rows]
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(k, out)| {
+            let y = object_rows.start + k;
+            for (x, out) in out.iter_mut().enumerate() {
+                let i = y * w + x;
+                if !object[i] {
+                    continue;
+                }
+                let c = pts[i];
+                let mut f = 0;
+                if x >= reach && x + reach < w && object[i - reach] && object[i + reach] {
+                    f |= judge(c, i - r, i + r);
+                }
+                let (up, down) = (i.wrapping_sub(reach * w), i + reach * w);
+                if y >= reach && y + reach < h && object[up] && object[down] {
+                    f |= judge(c, i - r * w, i + r * w);
+                }
+                *out = f;
             }
-            let c = pts[i];
-            let mut f = 0;
-            if x >= reach && x + reach < w && object[i - reach] && object[i + reach] {
-                f |= judge(c, i - r, i + r);
-            }
-            let (up, down) = (i.wrapping_sub(reach * w), i + reach * w);
-            if y >= reach && y + reach < h && object[up] && object[down] {
-                f |= judge(c, i - r * w, i + r * w);
-            }
-            *out = f;
-        }
-    });
+        });
 }

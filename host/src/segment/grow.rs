@@ -85,6 +85,9 @@ pub(super) struct GrowInput<'a> {
     pub(super) crease: &'a [u8],
     /// Object pixels (above the table, inside its hull).
     pub(super) object: &'a [bool],
+    /// The rows outside which `object` is all `false`
+    /// ([`object_rows`](super::geometry::object_rows)).
+    pub(super) object_rows: core::ops::Range<usize>,
     /// Footprint of each pixel, square metres per pixel at its depth.
     pub(super) px_area_m2: &'a [f32],
 }
@@ -245,7 +248,7 @@ pub(super) fn grow_segments(
 
     // Only the rows `y0..y1` hold object pixels: the serial passes below skip the others,
     // whose pixels are in no segment (the same result as a pass over the whole frame).
-    let (y0, y1) = object_rows(w, inp.object);
+    let (y0, y1) = (inp.object_rows.start, inp.object_rows.end);
     let rows = y0 * w..y1 * w;
 
     // 1. Union-find over the grown (non-crease) object pixels; a pixel's root is the least
@@ -474,18 +477,6 @@ pub(super) fn grow_segments(
 
     fill_holes(inp, params, s, labels, hole);
     Ok(segments)
-}
-
-/// The rows `y0..y1` outside which no pixel of `object` (rows of `w`) is set; `(0, 0)`
-/// if none is.
-fn object_rows(w: usize, object: &[bool]) -> (usize, usize) {
-    let any = |row: &[bool]| row.iter().fold(false, |a, &b| a | b);
-    let mut rows = object.chunks_exact(w);
-    let Some(y0) = rows.position(any) else {
-        return (0, 0);
-    };
-    let after = object.chunks_exact(w).rev().position(any).unwrap_or(0);
-    (y0, object.len() / w - after)
 }
 
 /// Rule 5 of the module docs.

@@ -190,6 +190,8 @@ pub(super) struct PlaneScratch {
     /// them reads memory in order.
     cand_pts: Vec<P3>,
     cand_nrm: Vec<P3>,
+    /// Each candidate's grid cell.
+    cand_cell: Vec<u32>,
     ransac: RansacScratch,
     flat: Vec<[f32; 2]>,
     keys: Vec<u64>,
@@ -197,7 +199,7 @@ pub(super) struct PlaneScratch {
     bend_samples: Vec<[f64; 3]>,
     hull: Vec<[f32; 2]>,
     grid: Vec<u32>,
-    queue: Vec<u32>,
+    queue: Vec<[u32; 2]>,
 }
 
 /// Scratch of [`ransac`].
@@ -295,10 +297,12 @@ pub(super) fn fit_table(
     };
     s.cand_pts.clear();
     s.cand_nrm.clear();
-    for i in grid_pixels() {
+    s.cand_cell.clear();
+    for (cell, i) in grid_pixels().enumerate() {
         if pts[i][2] > 0.0 && nrm[i] != [0.0; 3] {
             s.cand_pts.push(pts[i]);
             s.cand_nrm.push(nrm[i]);
+            s.cand_cell.push(cell as u32);
         }
     }
     let (cand_pts, cand_nrm) = (&s.cand_pts, &s.cand_nrm);
@@ -366,22 +370,19 @@ pub(super) fn fit_table(
         table.bend = bend;
     }
 
+    // Only candidates can be table cells (a cell without a normal fails the normal test),
+    // and they are in cell order: both passes read the compact candidates.
     s.grid.clear();
     s.grid.resize(gw * gh, 0);
-    for (cell, i) in s.grid.iter_mut().zip(grid_pixels()) {
-        let (p, q) = (pts[i], nrm[i]);
-        if p[2] > 0.0
-            && table.height_of(p).abs() <= params.plane_tolerance_m(p[2])
-            && dot(n, q) >= cos_normal
-        {
-            *cell = 1;
+    for ((&p, &q), &cell) in cand_pts.iter().zip(cand_nrm).zip(&s.cand_cell) {
+        if table.height_of(p).abs() <= params.plane_tolerance_m(p[2]) && dot(n, q) >= cos_normal {
+            s.grid[cell as usize] = 1;
         }
     }
     let largest = largest_component(gw, gh, &mut s.grid, &mut s.queue);
     s.flat.clear();
-    for (&c, i) in s.grid.iter().zip(grid_pixels()) {
-        if c == largest {
-            let p = pts[i];
+    for (&p, &cell) in cand_pts.iter().zip(&s.cand_cell) {
+        if s.grid[cell as usize] == largest {
             s.flat.push([dot(e1, p), dot(e2, p)]);
         }
     }
@@ -392,32 +393,33 @@ pub(super) fn fit_table(
 
 /// Labels the 4-connected components of the cells marked `1` in `grid` with ids from 2
 /// on, and returns the id of the largest (0 if there is none).
-fn largest_component(gw: usize, gh: usize, grid: &mut [u32], queue: &mut Vec<u32>) -> u32 {
+fn largest_component(gw: usize, gh: usize, grid: &mut [u32], queue: &mut Vec<[u32; 2]>) -> u32 {
     let (mut best, mut best_size, mut next) = (0, 0, 2);
     for start in 0..gw * gh {
         if grid[start] != 1 {
             continue;
         }
         queue.clear();
-        queue.push(start as u32);
+        // Cells as (x, y), so that no division finds a cell's column.
+        queue.push([(start % gw) as u32, (start / gw) as u32]);
         grid[start] = next;
         let mut head = 0;
-        while let Some(&g) = queue.get(head) {
+        while let Some(&[x, y]) = queue.get(head) {
             head += 1;
-            let g = g as usize;
-            let (x, y) = (g % gw, g / gw);
-            for nb in [
-                (x > 0).then(|| g - 1),
-                (x + 1 < gw).then(|| g + 1),
-                (y > 0).then(|| g - gw),
-                (y + 1 < gh).then(|| g + gw),
+            let (x, y) = (x as usize, y as usize);
+            let g = y * gw + x;
+            for (nb, nx, ny) in [
+                (x > 0).then(|| (g - 1, x - 1, y)),
+                (x + 1 < gw).then(|| (g + 1, x + 1, y)),
+                (y > 0).then(|| (g - gw, x, y - 1)),
+                (y + 1 < gh).then(|| (g + gw, x, y + 1)),
             ]
             .into_iter()
             .flatten()
             {
                 if grid[nb] == 1 {
                     grid[nb] = next;
-                    queue.push(nb as u32);
+                    queue.push([nx as u32, ny as u32]);
                 }
             }
         }

@@ -190,6 +190,44 @@ impl WindowSums {
         }
     }
 
+    /// [`Self::start`], [`Self::add_taps`] over all `N` taps, then [`Self::means`] in one
+    /// pass over the row: the sums start at `+0.0` and take the taps in order in registers,
+    /// so the means are bit for bit those of the three calls, without the sums' round trips
+    /// through memory. For the window's full width (`N = 2r + 1` taps).
+    fn window_means<const N: usize>(
+        &mut self,
+        taps: [[&[f32]; 3]; N],
+        cz: &[f32],
+        params: &SegmenterParams,
+        [ox, oy, oz]: [&mut [f32]; 3],
+    ) {
+        let w = self.jump.len();
+        for (j, &z) in self.jump.iter_mut().zip(cz) {
+            *j = if z > 0.0 {
+                params.depth_jump_at_m(z)
+            } else {
+                f32::NEG_INFINITY
+            };
+        }
+        let taps = taps.map(|t| t.map(|plane| &plane[..w]));
+        let (cz, jump) = (&cz[..w], &self.jump[..w]);
+        let (ox, oy, oz) = (&mut ox[..w], &mut oy[..w], &mut oz[..w]);
+        for x in 0..w {
+            let (mut ax, mut ay, mut az, mut an) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+            for [qx, qy, qz] in &taps {
+                let m = mask((qz[x] > 0.0) & ((qz[x] - cz[x]).abs() <= jump[x]));
+                ax += keep(qx[x], m);
+                ay += keep(qy[x], m);
+                az += keep(qz[x], m);
+                an += keep(1.0, m);
+            }
+            let m = mask(cz[x] > 0.0);
+            ox[x] = keep(ax / an, m);
+            oy[x] = keep(ay / an, m);
+            oz[x] = keep(az / an, m);
+        }
+    }
+
     /// The means where the centre has a reading, zero elsewhere, into `(ox, oy, oz)`.
     fn means(&self, cz: &[f32], ox: &mut [f32], oy: &mut [f32], oz: &mut [f32]) {
         let w = self.jump.len();
@@ -204,6 +242,10 @@ impl WindowSums {
         }
     }
 }
+
+/// The smoothing radius the fused window pass ([`WindowSums::window_means`]) is compiled
+/// for: the default's. Other radii take the general path, with the same result.
+const DEFAULT_SMOOTH_RADIUS_PX: usize = 3;
 
 /// Edge-aware smoothing of the points back-projected from `frame` (no reading:
 /// `[0, 0, 0]`): the mean of the points within
@@ -234,11 +276,17 @@ pub(super) fn smooth_points(
             back_project_row(frame, k, y, [&mut rx[r..], &mut ry[r..], &mut rz[r..]]);
             let [rx, ry, rz] = &*row;
             let cz = &rz[r..];
-            sums.start(cz, params);
-            sums.add_taps(2 * r + 1, |d| [&rx[d..], &ry[d..], &rz[d..]], cz);
             let (tx, t) = t.split_at_mut(w);
             let (ty, tz) = t.split_at_mut(w);
-            sums.means(cz, tx, ty, tz);
+            let tap = |d: usize| [&rx[d..], &ry[d..], &rz[d..]];
+            if r == DEFAULT_SMOOTH_RADIUS_PX {
+                let taps = core::array::from_fn::<_, { 2 * DEFAULT_SMOOTH_RADIUS_PX + 1 }, _>(tap);
+                sums.window_means(taps, cz, params, [tx, ty, tz]);
+            } else {
+                sums.start(cz, params);
+                sums.add_taps(2 * r + 1, tap, cz);
+                sums.means(cz, tx, ty, tz);
+            }
         },
     );
     // Along columns.
@@ -256,17 +304,12 @@ pub(super) fn smooth_points(
             |RowScratch { sums, .. }, (y, (pl, o))| {
                 let centre = &tmp[3 * w * y..3 * w * (y + 1)];
                 let cz = &centre[2 * w..];
-                sums.start(cz, params);
                 let first = y.saturating_sub(r);
                 let count = (y + r).min(h - 1) + 1 - first;
-                sums.add_taps(
-                    count,
-                    |t| {
-                        let q = &tmp[3 * w * (first + t)..3 * w * (first + t + 1)];
-                        [&q[..w], &q[w..2 * w], &q[2 * w..]]
-                    },
-                    cz,
-                );
+                let tap = |t: usize| {
+                    let q = &tmp[3 * w * (first + t)..3 * w * (first + t + 1)];
+                    [&q[..w], &q[w..2 * w], &q[2 * w..]]
+                };
                 let (px, pl) = pl.split_at_mut(wp);
                 let (py, pz) = pl.split_at_mut(wp);
                 let (px, py, pz) = (
@@ -274,7 +317,15 @@ pub(super) fn smooth_points(
                     &mut py[pad..pad + w],
                     &mut pz[pad..pad + w],
                 );
-                sums.means(cz, px, py, pz);
+                if r == DEFAULT_SMOOTH_RADIUS_PX && count == 2 * r + 1 {
+                    let taps =
+                        core::array::from_fn::<_, { 2 * DEFAULT_SMOOTH_RADIUS_PX + 1 }, _>(tap);
+                    sums.window_means(taps, cz, params, [px, py, pz]);
+                } else {
+                    sums.start(cz, params);
+                    sums.add_taps(count, tap, cz);
+                    sums.means(cz, px, py, pz);
+                }
                 for (x, o) in o.iter_mut().enumerate() {
                     *o = [px[x], py[x], pz[x]];
                 }
@@ -556,4 +607,48 @@ pub(super) fn creases(inp: &CreaseInput<'_>, params: &SegmenterParams, out: &mut
                 *out = f;
             }
         });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fused_window_means_equal_the_three_passes_bit_for_bit() {
+        let (w, r) = (37, DEFAULT_SMOOTH_RADIUS_PX);
+        let params = SegmenterParams::default();
+        // Depths with holes, steps and noise; x and y planes of mixed signs.
+        let mut rng = riseg_core::rng::Pcg32::new(7);
+        let mut plane = |scale: f32, holes: bool| -> Vec<f32> {
+            (0..w + 2 * r)
+                .map(|_| {
+                    let v = rng.below(1000) as f32 / 1000.0;
+                    if holes && rng.below(6) == 0 {
+                        0.0
+                    } else if holes {
+                        0.5 + scale * v + 0.02 * (rng.below(3) as f32)
+                    } else {
+                        scale * (v - 0.5)
+                    }
+                })
+                .collect()
+        };
+        let row = [plane(0.3, false), plane(0.2, false), plane(0.01, true)];
+        let cz = &row[2][r..];
+        let tap = |d: usize| [&row[0][d..], &row[1][d..], &row[2][d..]];
+        let mut sums = RowScratch::with_width(w, 0).sums;
+        let mut general = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+        sums.start(cz, &params);
+        sums.add_taps(2 * r + 1, tap, cz);
+        let [gx, gy, gz] = &mut general;
+        sums.means(cz, gx, gy, gz);
+        let mut fused = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+        let taps = core::array::from_fn::<_, { 2 * DEFAULT_SMOOTH_RADIUS_PX + 1 }, _>(tap);
+        let [fx, fy, fz] = &mut fused;
+        sums.window_means(taps, cz, &params, [fx, fy, fz]);
+        let bits =
+            |v: &[Vec<f32>; 3]| -> Vec<u32> { v.iter().flatten().map(|f| f.to_bits()).collect() };
+        assert_eq!(bits(&fused), bits(&general));
+        assert!(general[2].contains(&0.0) && general[2].iter().any(|&z| z > 0.0));
+    }
 }

@@ -401,6 +401,8 @@ fn same_surface(c: P3, q: P3, sep: usize, params: &SegmenterParams) -> bool {
 
 /// Unit normals facing the camera from cross products of point differences
 /// `±normal_radius_px` apart; `[0, 0, 0]` where either direction has no surface neighbour.
+/// Only the rows `y` with `rows(y)` are written (each row's normals depend on the points
+/// alone, so a row computed in a later call is the same as in an earlier one).
 ///
 /// Along each direction the difference across a pixel is central where both neighbours
 /// `r` pixels away are on its surface (a reading within `r` times
@@ -412,6 +414,7 @@ pub(super) fn normals(
     h: usize,
     planes: &RowPlanes,
     params: &SegmenterParams,
+    rows: impl Fn(usize) -> bool + Sync + Send,
     out: &mut [P3],
 ) {
     let r = params.normal_radius_px;
@@ -421,6 +424,9 @@ pub(super) fn normals(
     out.par_chunks_mut(w).enumerate().for_each_init(
         || vec![0.0f32; 3 * w],
         |soa, (y, o)| {
+            if !rows(y) {
+                return;
+            }
             let row = planes.row(y);
             let up = if y >= r { planes.row(y - r) } else { &none };
             let down = if y + r < h { planes.row(y + r) } else { &none };

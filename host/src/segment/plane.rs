@@ -272,6 +272,19 @@ fn is_inlier(plane: &TablePlane, p: P3, n: P3, cos_normal: f32, params: &Segment
         && dot(plane.normal_array(), n) >= cos_normal
 }
 
+/// The candidate grid's spacing, pixels: the grid's cells are the pixels
+/// `(step/2 + gx·step, step/2 + gy·step)`.
+fn grid_step(w: usize, h: usize) -> usize {
+    ((w * h / TARGET_CANDIDATES) as f64).sqrt().floor().max(1.0) as usize
+}
+
+/// `true` for the rows of a `w × h` frame that hold candidate grid cells: the only rows
+/// whose points and normals [`fit_table`] reads.
+pub(super) fn is_grid_row(w: usize, h: usize, y: usize) -> bool {
+    let step = grid_step(w, h);
+    y >= step / 2 && (y - step / 2) % step == 0
+}
+
 /// Fits the table (see the module docs).
 ///
 /// # Errors
@@ -284,7 +297,7 @@ pub(super) fn fit_table(
     params: &SegmenterParams,
     s: &mut PlaneScratch,
 ) -> Result<TableFit, SegmentError> {
-    let step = ((w * h / TARGET_CANDIDATES) as f64).sqrt().floor().max(1.0) as usize;
+    let step = grid_step(w, h);
     let (gw, gh) = (
         w.saturating_sub(step / 2).div_ceil(step),
         h.saturating_sub(step / 2).div_ceil(step),

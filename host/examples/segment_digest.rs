@@ -9,11 +9,19 @@
 //! - `... --example segment_digest -- time N` segments the first real frame (or the
 //!   synthetic tabletop without the shared data) `N` times and prints the least and the
 //!   median wall time:
-//!   run it under `valgrind --tool=callgrind` for an instruction count.
+//!   run it under `valgrind --tool=callgrind` for an instruction count (with
+//!   `RAYON_NUM_THREADS=1` every stage runs on the timing thread, so the inclusive costs
+//!   of the stage functions add up).
+//! - `... --example segment_digest -- time N SCENE_DIR` times frame 1 of a scene folder
+//!   (`riseg gen`'s output, as `bench/speed.sh` does) instead.
 
-use std::{path::PathBuf, time::Instant};
+use std::{
+    path::{Path, PathBuf},
+    time::Instant,
+};
 
 use riseg::{
+    io::scene::Scene,
     segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams},
     sim::{Layout, SimConfig, SimScene, first_usable_seed, scene_seed},
     testkit::segment::SyntheticTabletop,
@@ -143,29 +151,63 @@ fn digest(seg: &mut ClassicalSegmenter, f: &Input) -> u64 {
     hash
 }
 
+/// The first real frame of the shared data, or a synthetic tabletop without it.
+fn first_real_frame() -> Input {
+    let demo = shared_data().join("ucn-demo/data/demo");
+    let ucn = Intrinsics::new(612.937, 613.173, 322.549, 248.158).expect("intrinsics");
+    real_frame(
+        "ucn_000000".into(),
+        demo.join("000000-color.png"),
+        demo.join("000000-depth.png"),
+        ucn,
+    )
+    .unwrap_or_else(|| synthetic(640, 480, 1))
+}
+
+/// Frame 1 of a scene folder (the frame `bench/speed.sh` times).
+fn scene_frame(dir: &Path) -> Input {
+    let scene = Scene::read(dir).expect("a scene folder");
+    let t = 1.min(scene.rgb.len() - 1);
+    let (width, height) = scene.rgb[t].size();
+    Input {
+        name: format!("{} frame {t}", dir.display()),
+        width,
+        height,
+        rgb: scene.rgb[t].as_slice().to_vec(),
+        depth_m: scene.depth[t]
+            .as_slice()
+            .iter()
+            .map(|&r| scene.camera.depth_m(r))
+            .collect(),
+        k: scene.camera.intrinsics(),
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let params = SegmenterParams::default();
     if args.first().map(String::as_str) == Some("time") {
         let n: usize = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(20);
-        let demo = shared_data().join("ucn-demo/data/demo");
-        let ucn = Intrinsics::new(612.937, 613.173, 322.549, 248.158).expect("intrinsics");
-        let f = real_frame(
-            "ucn_000000".into(),
-            demo.join("000000-color.png"),
-            demo.join("000000-depth.png"),
-            ucn,
-        )
-        .unwrap_or_else(|| synthetic(640, 480, 1));
+        let f = match args.get(2) {
+            Some(dir) => scene_frame(Path::new(dir)),
+            None => first_real_frame(),
+        };
         let mut seg = ClassicalSegmenter::new(params).expect("params");
         let frame = RgbdFrame::new(f.width, f.height, &f.rgb, &f.depth_m).expect("frame");
-        let mut ms: Vec<f64> = (0..n)
-            .map(|_| {
-                let start = Instant::now();
-                core::hint::black_box(seg.segment_detailed(&frame, &f.k).expect("segments"));
-                start.elapsed().as_secs_f64() * 1e3
-            })
-            .collect();
+        // Inside a pool (`RAYON_NUM_THREADS` threads) so that, on one thread, every stage
+        // runs on the calling thread and a profiler's inclusive costs add up per stage.
+        let pool = rayon::ThreadPoolBuilder::new()
+            .build()
+            .expect("a thread pool");
+        let mut ms: Vec<f64> = pool.install(|| {
+            (0..n)
+                .map(|_| {
+                    let start = Instant::now();
+                    core::hint::black_box(seg.segment_detailed(&frame, &f.k).expect("segments"));
+                    start.elapsed().as_secs_f64() * 1e3
+                })
+                .collect()
+        });
         ms.sort_by(f64::total_cmp);
         if let (Some(min), Some(median)) = (ms.first(), ms.get(n / 2)) {
             println!(

@@ -5,7 +5,10 @@ use std::path::PathBuf;
 
 use crate::cli::models::{ModelArg, parse_model};
 use crate::flow::{DisFlow, FlowEstimator as _, FlowParams, viz::flow_to_rgb};
-use crate::io::image::{read_png_as_rgb8, write_flo, write_rgb8};
+use crate::io::{
+    Durability,
+    image::{read_png_as_rgb8, write_flo_as, write_rgb8_as},
+};
 use anyhow::{Context as _, bail};
 use clap::ValueEnum;
 
@@ -23,7 +26,8 @@ i32 width, i32 height, then width*height pairs of f32 (dx, dy), row-major. --viz
 writes the flow as an 8-bit RGB PNG on the Middlebury colour wheel: hue is the direction \
 (right red, down yellow, left cyan, up blue), saturation the length relative to the \
 largest vector; white is no motion. Outputs are written to a temporary file and renamed, \
-so they are never left half-written.
+so they are never left half-written; they are not flushed to disk first (a power loss within \
+seconds of the call may leave the old file or none: run the command again).
 
 Presets, fastest first (bench/flow.sh measures them against OpenCV's DIS):
   ultrafast  stops at quarter resolution, no refinement: a few ms, coarse boundaries
@@ -124,9 +128,10 @@ pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
                 args.second.display()
             )
         })?;
-    write_flo(&args.output, &flow)?;
+    // Derived outputs: atomic, not flushed to disk (`Durability`'s contract).
+    write_flo_as(&args.output, &flow, Durability::Derived)?;
     if let Some(viz) = &args.viz {
-        write_rgb8(viz, &flow_to_rgb(&flow, None))?;
+        write_rgb8_as(viz, &flow_to_rgb(&flow, None), Durability::Derived)?;
     }
     Ok(())
 }

@@ -138,12 +138,14 @@ pub(super) fn command(args: &SegmentArgs) -> anyhow::Result<()> {
     };
     let seg = &seg;
 
-    crate::io::image::write_gray16(&args.output, &seg.labels)?;
+    // Derived outputs: atomic, not flushed to disk (`Durability`'s contract).
+    let derived = crate::io::Durability::Derived;
+    crate::io::image::write_gray16_as(&args.output, &seg.labels, derived)?;
     if let Some(path) = &args.heatmap {
-        crate::io::image::write_gray8(path, &seg.heatmap)?;
+        crate::io::image::write_gray8_as(path, &seg.heatmap, derived)?;
     }
     if let Some(path) = &args.viz {
-        crate::io::image::write_rgb8(path, &viz::side_by_side(&rgb, seg))?;
+        crate::io::image::write_rgb8_as(path, &viz::side_by_side(&rgb, seg), derived)?;
     }
     say!(
         "{} segments{plane}; labels -> {}\n",

@@ -14,6 +14,8 @@
 //! - Every writer is atomic: the bytes go to a temporary file in the destination's folder,
 //!   which is flushed to disk and then renamed over the destination, so a reader sees either
 //!   the old file, or the complete new one, never half a file ([`super::write_atomic`]).
+//!   The `_as` writers take a [`Durability`]: [`Durability::Derived`] skips the flush for
+//!   outputs a command can compute again (the contract is in [`Durability`]'s docs).
 //! - Encoding is deterministic: the same image gives the same bytes.
 //!
 //! `.flo` (Middlebury): little-endian `f32` magic `202021.25` (the bytes `PIEH`), `i32`
@@ -29,7 +31,7 @@ use std::{
 use riseg_core::ImageView;
 
 use super::files::{DiskFiles, Files};
-use super::{write_atomic, write_atomic_with};
+use super::{Durability, write_atomic_as};
 
 use image::{
     DynamicImage, ExtendedColorType, ImageDecoder as _, ImageEncoder,
@@ -285,9 +287,10 @@ impl ImageIoError {
     }
 }
 
-/// [`write_atomic`] with an error naming `path`.
-fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ImageIoError> {
-    write_atomic(path, bytes).map_err(|e| ImageIoError::new(path, ImageProblem::Io(e)))
+/// [`write_atomic_as`] with an error naming `path`.
+fn write_file(path: &Path, bytes: &[u8], durability: Durability) -> Result<(), ImageIoError> {
+    write_atomic_as(path, durability, |file| file.write_all(bytes))
+        .map_err(|e| ImageIoError::new(path, ImageProblem::Io(e)))
 }
 
 fn read_bytes<'a>(files: &'a impl Files, path: &Path) -> Result<Cow<'a, [u8]>, ImageIoError> {
@@ -565,9 +568,21 @@ fn encode_png(
 /// # Errors
 /// I/O errors, or an image the PNG encoder refuses (e.g. zero width), naming `path`.
 pub fn write_rgb8(path: &Path, image: &RgbImage) -> Result<(), ImageIoError> {
+    write_rgb8_as(path, image, Durability::Durable)
+}
+
+/// [`write_rgb8`] with the [`Durability`] the file needs.
+///
+/// # Errors
+/// As [`write_rgb8`].
+pub fn write_rgb8_as(
+    path: &Path,
+    image: &RgbImage,
+    durability: Durability,
+) -> Result<(), ImageIoError> {
     let bytes: Vec<u8> = image.data.iter().flatten().copied().collect();
     let png = encode_png(path, &bytes, image.size(), ExtendedColorType::Rgb8)?;
-    write_file(path, &png)
+    write_file(path, &png, durability)
 }
 
 /// Writes a 16-bit greyscale PNG atomically.
@@ -575,10 +590,22 @@ pub fn write_rgb8(path: &Path, image: &RgbImage) -> Result<(), ImageIoError> {
 /// # Errors
 /// As [`write_rgb8`].
 pub fn write_gray16(path: &Path, image: &Gray16Image) -> Result<(), ImageIoError> {
+    write_gray16_as(path, image, Durability::Durable)
+}
+
+/// [`write_gray16`] with the [`Durability`] the file needs.
+///
+/// # Errors
+/// As [`write_rgb8`].
+pub fn write_gray16_as(
+    path: &Path,
+    image: &Gray16Image,
+    durability: Durability,
+) -> Result<(), ImageIoError> {
     // The encoder takes native-endian samples and writes PNG's big-endian ones.
     let bytes: Vec<u8> = image.data.iter().flat_map(|v| v.to_ne_bytes()).collect();
     let png = encode_png(path, &bytes, image.size(), ExtendedColorType::L16)?;
-    write_file(path, &png)
+    write_file(path, &png, durability)
 }
 
 /// Writes an 8-bit greyscale PNG atomically.
@@ -586,8 +613,20 @@ pub fn write_gray16(path: &Path, image: &Gray16Image) -> Result<(), ImageIoError
 /// # Errors
 /// As [`write_rgb8`].
 pub fn write_gray8(path: &Path, image: &Gray8Image) -> Result<(), ImageIoError> {
+    write_gray8_as(path, image, Durability::Durable)
+}
+
+/// [`write_gray8`] with the [`Durability`] the file needs.
+///
+/// # Errors
+/// As [`write_rgb8`].
+pub fn write_gray8_as(
+    path: &Path,
+    image: &Gray8Image,
+    durability: Durability,
+) -> Result<(), ImageIoError> {
     let png = encode_png(path, &image.data, image.size(), ExtendedColorType::L8)?;
-    write_file(path, &png)
+    write_file(path, &png, durability)
 }
 
 /// The `.flo` magic number (the bytes `PIEH` read as a little-endian `f32`).
@@ -773,12 +812,24 @@ pub fn read_flo_in(files: &impl Files, path: &Path) -> Result<FlowImage, ImageIo
 /// # Errors
 /// An image side above [`FLO_MAX_SIDE_PX`] (or zero), or I/O errors, naming `path`.
 pub fn write_flo(path: &Path, flow: &FlowImage) -> Result<(), ImageIoError> {
+    write_flo_as(path, flow, Durability::Durable)
+}
+
+/// [`write_flo`] with the [`Durability`] the file needs.
+///
+/// # Errors
+/// As [`write_flo`].
+pub fn write_flo_as(
+    path: &Path,
+    flow: &FlowImage,
+    durability: Durability,
+) -> Result<(), ImageIoError> {
     let header =
         flo_header(flow).map_err(|e| ImageIoError::new(path, ImageProblem::CorruptFlo(e)))?;
     // Encoded and written a piece at a time: the whole file never sits in memory.
     const PIECE_VECTORS: usize = 8192;
     let mut piece = vec![0u8; PIECE_VECTORS * 8];
-    write_atomic_with(path, |file| {
+    write_atomic_as(path, durability, |file| {
         file.write_all(&header)?;
         for vectors in flow.data.chunks(PIECE_VECTORS) {
             let bytes = &mut piece[..vectors.len() * 8];

@@ -22,10 +22,37 @@ pub(crate) fn temp_name(name: &str, kind: &str) -> String {
     format!(".{name}.{kind}-{}-{n}", std::process::id())
 }
 
+/// How a file written by [`write_atomic_as`] survives a crash of the *machine* (power loss,
+/// kernel panic). Both are atomic for every reader and against a crash of riseg itself: a
+/// hidden temporary file in the destination's folder is renamed over the destination once
+/// it is complete, so a reader sees the old file or the whole new one, never half a file.
+///
+/// The contract, by what the file is:
+/// - [`Durability::Durable`] (what [`write_atomic`] and the image writers use): recordings
+///   and datasets, which cannot be made again: scene folders (`riseg gen`, the frames of
+///   `riseg run --live`), reports and masks of the long commands. The data is flushed to
+///   disk (`fsync`) before the rename, so once the call returns the new file survives a
+///   power loss.
+/// - [`Durability::Derived`]: outputs a one-shot command computes from its inputs and can
+///   compute again (`riseg flow`'s `.flo` field and picture, `riseg segment`'s labels,
+///   heatmap and picture). Renamed without the flush: the flush is a large share of such a
+///   call (milliseconds on an idle SSD, far more on a busy or network disk) and buys
+///   nothing a rerun does not. After a power loss within the kernel's writeback delay
+///   (seconds) the file may be the old one, missing or empty; run the command again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Durability {
+    /// Flushed to disk before the rename: survives a power loss once written.
+    #[default]
+    Durable,
+    /// Renamed without a flush: a derived output a rerun writes again.
+    Derived,
+}
+
 /// Writes `bytes` to `path` atomically: a hidden temporary file in the same folder
 /// (`.{name}.tmp-{pid}-{n}`), flushed to disk, then renamed over `path`, so a reader sees the old
 /// file or the whole new one, never half a file. On error the temporary file is removed.
-/// Every file riseg writes goes through here.
+/// Every file riseg writes goes through here ([`Durability::Durable`]; [`write_atomic_as`]
+/// for derived outputs).
 ///
 /// What is at `path` is respected: a symbolic link is followed and its target written
 /// (the link stays a link); a device, pipe or socket is written directly, not replaced
@@ -36,7 +63,7 @@ pub(crate) fn temp_name(name: &str, kind: &str) -> String {
 /// The I/O error of the step that failed (the folder is missing or not writable, the
 /// disk is full, the path is a folder, ...). Callers add the path to the message.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    write_atomic_with(path, |file| file.write_all(bytes))
+    write_atomic_as(path, Durability::Durable, |file| file.write_all(bytes))
 }
 
 /// [`write_atomic`] with the bytes written by `fill`, so that a large file need not be held
@@ -48,6 +75,20 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
 /// As [`write_atomic`], and any error `fill` returns.
 pub fn write_atomic_with(
     path: &Path,
+    fill: impl FnOnce(&mut fs::File) -> io::Result<()>,
+) -> io::Result<()> {
+    write_atomic_as(path, Durability::Durable, fill)
+}
+
+/// [`write_atomic_with`] with the [`Durability`] the file needs: as [`write_atomic`] for
+/// [`Durability::Durable`]; for [`Durability::Derived`] the temporary file is renamed
+/// without being flushed to disk first (see [`Durability`] for when that is right).
+///
+/// # Errors
+/// As [`write_atomic_with`].
+pub fn write_atomic_as(
+    path: &Path,
+    durability: Durability,
     fill: impl FnOnce(&mut fs::File) -> io::Result<()>,
 ) -> io::Result<()> {
     let target = follow_links(path)?;
@@ -63,7 +104,9 @@ pub fn write_atomic_with(
     let result = (|| {
         let mut file = fs::File::create(&tmp)?;
         fill(&mut file)?;
-        file.sync_all()?;
+        if durability == Durability::Durable {
+            file.sync_all()?;
+        }
         fs::rename(&tmp, &target)
     })();
     if result.is_err() {
@@ -167,6 +210,20 @@ mod tests {
         assert_eq!(fs::read(&path).unwrap(), b"second");
         let names: Vec<_> = fs::read_dir(&dir).unwrap().collect();
         assert_eq!(names.len(), 1);
+        // A derived output (no flush) is replaced whole just the same.
+        write_atomic_as(&path, Durability::Derived, |f| {
+            f.write_all(b"third, longer")
+        })
+        .unwrap();
+        assert_eq!(fs::read(&path).unwrap(), b"third, longer");
+        assert_eq!(fs::read_dir(&dir).unwrap().count(), 1);
+        let failed = write_atomic_as(&path, Durability::Derived, |f| {
+            f.write_all(b"half")?;
+            Err(io::Error::other("the fill failed"))
+        });
+        assert!(failed.is_err());
+        assert_eq!(fs::read(&path).unwrap(), b"third, longer");
+        assert_eq!(fs::read_dir(&dir).unwrap().count(), 1, "no temporary left");
         // A missing folder is an error and leaves nothing behind.
         let missing = dir.join("no-such-folder").join("b.json");
         assert!(write_atomic(&missing, b"x").is_err());

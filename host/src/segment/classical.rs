@@ -31,7 +31,7 @@ use super::{
     geometry::{self, P3},
     grow::{GrowInput, GrowScratch, grow_segments},
     heat::{HeatInput, HeatScratch, heatmap},
-    plane::{PlaneScratch, TableFit, TablePlane, fit_table},
+    plane::{PlaneScratch, TableFit, TablePlane, fit_table, is_grid_row},
 };
 use crate::{io::image::Image, par::*};
 
@@ -140,7 +140,10 @@ impl ClassicalSegmenter {
         s.step.resize(n, 0);
 
         geometry::smooth_points(frame, intrinsics, p, &mut s.smooth, &mut s.pts);
-        geometry::normals(w, h, &s.smooth.planes, p, &mut s.nrm);
+        // Normals where they are read: the table fit's grid rows now, the rows around the
+        // objects (for creases and growing) once the objects are known.
+        let grid_row = |y| is_grid_row(w, h, y);
+        geometry::normals(w, h, &s.smooth.planes, p, grid_row, &mut s.nrm);
         let table = fit_table(w, h, &s.pts, &s.nrm, p, &mut s.plane)?;
         let px_per_m2 = 1.0 / (intrinsics.fx * intrinsics.fy);
         for (a, q) in s.px_area_m2.iter_mut().zip(&s.pts) {
@@ -160,6 +163,21 @@ impl ClassicalSegmenter {
                     .keep_inside([px, py, pz], p.hull_margin_m, object);
             });
 
+        let object_rows = geometry::object_rows(w, &s.object);
+        // Creases read normals `crease_radius_px` rows above and below an object pixel;
+        // growing reads them at object pixels only.
+        let near = object_rows.start.saturating_sub(p.crease_radius_px)
+            ..(object_rows.end + p.crease_radius_px).min(h);
+        if !object_rows.is_empty() {
+            geometry::normals(
+                w,
+                h,
+                &s.smooth.planes,
+                p,
+                |y| near.contains(&y) && !grid_row(y),
+                &mut s.nrm,
+            );
+        }
         let crease_input = geometry::CreaseInput {
             w,
             h,
@@ -167,6 +185,7 @@ impl ClassicalSegmenter {
             pts: &s.pts,
             nrm: &s.nrm,
             object: &s.object,
+            object_rows: object_rows.clone(),
         };
         geometry::creases(&crease_input, p, &mut s.crease);
         geometry::drop_small_regions(
@@ -188,6 +207,7 @@ impl ClassicalSegmenter {
                 nrm: &s.nrm,
                 crease: &s.crease,
                 object: &s.object,
+                object_rows,
                 px_area_m2: &s.px_area_m2,
             },
             p,

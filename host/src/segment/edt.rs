@@ -28,6 +28,19 @@ pub(super) struct Window {
     pub(super) y1: usize,
 }
 
+impl Window {
+    /// The window's rows, each with its columns.
+    pub(super) fn rows(self) -> impl Iterator<Item = (usize, core::ops::Range<usize>)> {
+        (self.y0..self.y1).map(move |y| (y, self.x0..self.x1))
+    }
+
+    /// The window's pixel indices in an image `w` pixels wide, in row-major order.
+    pub(super) fn pixels(self, w: usize) -> impl Iterator<Item = usize> {
+        self.rows()
+            .flat_map(move |(y, xs)| xs.map(move |x| y * w + x))
+    }
+}
+
 /// Squared distance (px²) from each pixel of `win` to the nearest pixel of `win` with
 /// `in_set(i)`, into `out` (row-major, `w` pixels a row; pixels outside `win` are left as
 /// they are), exact up to `limit_px`; a pixel farther than `limit_px` from the set gets a

@@ -190,6 +190,44 @@ impl WindowSums {
         }
     }
 
+    /// [`Self::start`], [`Self::add_taps`] over all `N` taps, then [`Self::means`] in one
+    /// pass over the row: the sums start at `+0.0` and take the taps in order in registers,
+    /// so the means are bit for bit those of the three calls, without the sums' round trips
+    /// through memory. For the window's full width (`N = 2r + 1` taps).
+    fn window_means<const N: usize>(
+        &mut self,
+        taps: [[&[f32]; 3]; N],
+        cz: &[f32],
+        params: &SegmenterParams,
+        [ox, oy, oz]: [&mut [f32]; 3],
+    ) {
+        let w = self.jump.len();
+        for (j, &z) in self.jump.iter_mut().zip(cz) {
+            *j = if z > 0.0 {
+                params.depth_jump_at_m(z)
+            } else {
+                f32::NEG_INFINITY
+            };
+        }
+        let taps = taps.map(|t| t.map(|plane| &plane[..w]));
+        let (cz, jump) = (&cz[..w], &self.jump[..w]);
+        let (ox, oy, oz) = (&mut ox[..w], &mut oy[..w], &mut oz[..w]);
+        for x in 0..w {
+            let (mut ax, mut ay, mut az, mut an) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+            for [qx, qy, qz] in &taps {
+                let m = mask((qz[x] > 0.0) & ((qz[x] - cz[x]).abs() <= jump[x]));
+                ax += keep(qx[x], m);
+                ay += keep(qy[x], m);
+                az += keep(qz[x], m);
+                an += keep(1.0, m);
+            }
+            let m = mask(cz[x] > 0.0);
+            ox[x] = keep(ax / an, m);
+            oy[x] = keep(ay / an, m);
+            oz[x] = keep(az / an, m);
+        }
+    }
+
     /// The means where the centre has a reading, zero elsewhere, into `(ox, oy, oz)`.
     fn means(&self, cz: &[f32], ox: &mut [f32], oy: &mut [f32], oz: &mut [f32]) {
         let w = self.jump.len();
@@ -204,6 +242,10 @@ impl WindowSums {
         }
     }
 }
+
+/// The smoothing radius the fused window pass ([`WindowSums::window_means`]) is compiled
+/// for: the default's. Other radii take the general path, with the same result.
+const DEFAULT_SMOOTH_RADIUS_PX: usize = 3;
 
 /// Edge-aware smoothing of the points back-projected from `frame` (no reading:
 /// `[0, 0, 0]`): the mean of the points within
@@ -234,11 +276,17 @@ pub(super) fn smooth_points(
             back_project_row(frame, k, y, [&mut rx[r..], &mut ry[r..], &mut rz[r..]]);
             let [rx, ry, rz] = &*row;
             let cz = &rz[r..];
-            sums.start(cz, params);
-            sums.add_taps(2 * r + 1, |d| [&rx[d..], &ry[d..], &rz[d..]], cz);
             let (tx, t) = t.split_at_mut(w);
             let (ty, tz) = t.split_at_mut(w);
-            sums.means(cz, tx, ty, tz);
+            let tap = |d: usize| [&rx[d..], &ry[d..], &rz[d..]];
+            if r == DEFAULT_SMOOTH_RADIUS_PX {
+                let taps = core::array::from_fn::<_, { 2 * DEFAULT_SMOOTH_RADIUS_PX + 1 }, _>(tap);
+                sums.window_means(taps, cz, params, [tx, ty, tz]);
+            } else {
+                sums.start(cz, params);
+                sums.add_taps(2 * r + 1, tap, cz);
+                sums.means(cz, tx, ty, tz);
+            }
         },
     );
     // Along columns.
@@ -256,17 +304,12 @@ pub(super) fn smooth_points(
             |RowScratch { sums, .. }, (y, (pl, o))| {
                 let centre = &tmp[3 * w * y..3 * w * (y + 1)];
                 let cz = &centre[2 * w..];
-                sums.start(cz, params);
                 let first = y.saturating_sub(r);
                 let count = (y + r).min(h - 1) + 1 - first;
-                sums.add_taps(
-                    count,
-                    |t| {
-                        let q = &tmp[3 * w * (first + t)..3 * w * (first + t + 1)];
-                        [&q[..w], &q[w..2 * w], &q[2 * w..]]
-                    },
-                    cz,
-                );
+                let tap = |t: usize| {
+                    let q = &tmp[3 * w * (first + t)..3 * w * (first + t + 1)];
+                    [&q[..w], &q[w..2 * w], &q[2 * w..]]
+                };
                 let (px, pl) = pl.split_at_mut(wp);
                 let (py, pz) = pl.split_at_mut(wp);
                 let (px, py, pz) = (
@@ -274,7 +317,15 @@ pub(super) fn smooth_points(
                     &mut py[pad..pad + w],
                     &mut pz[pad..pad + w],
                 );
-                sums.means(cz, px, py, pz);
+                if r == DEFAULT_SMOOTH_RADIUS_PX && count == 2 * r + 1 {
+                    let taps =
+                        core::array::from_fn::<_, { 2 * DEFAULT_SMOOTH_RADIUS_PX + 1 }, _>(tap);
+                    sums.window_means(taps, cz, params, [px, py, pz]);
+                } else {
+                    sums.start(cz, params);
+                    sums.add_taps(count, tap, cz);
+                    sums.means(cz, px, py, pz);
+                }
                 for (x, o) in o.iter_mut().enumerate() {
                     *o = [px[x], py[x], pz[x]];
                 }
@@ -350,6 +401,8 @@ fn same_surface(c: P3, q: P3, sep: usize, params: &SegmenterParams) -> bool {
 
 /// Unit normals facing the camera from cross products of point differences
 /// `±normal_radius_px` apart; `[0, 0, 0]` where either direction has no surface neighbour.
+/// Only the rows `y` with `rows(y)` are written (each row's normals depend on the points
+/// alone, so a row computed in a later call is the same as in an earlier one).
 ///
 /// Along each direction the difference across a pixel is central where both neighbours
 /// `r` pixels away are on its surface (a reading within `r` times
@@ -361,6 +414,7 @@ pub(super) fn normals(
     h: usize,
     planes: &RowPlanes,
     params: &SegmenterParams,
+    rows: impl Fn(usize) -> bool + Sync + Send,
     out: &mut [P3],
 ) {
     let r = params.normal_radius_px;
@@ -370,6 +424,9 @@ pub(super) fn normals(
     out.par_chunks_mut(w).enumerate().for_each_init(
         || vec![0.0f32; 3 * w],
         |soa, (y, o)| {
+            if !rows(y) {
+                return;
+            }
             let row = planes.row(y);
             let up = if y >= r { planes.row(y - r) } else { &none };
             let down = if y + r < h { planes.row(y + r) } else { &none };
@@ -455,8 +512,19 @@ fn normals_row(
     }
 }
 
+/// The rows `y0..y1` outside which no pixel of `object` (rows of `w` pixels) is set;
+/// empty if none is.
+pub(super) fn object_rows(w: usize, object: &[bool]) -> core::ops::Range<usize> {
+    let any = |row: &[bool]| row.iter().fold(false, |a, &b| a | b);
+    let Some(y0) = object.chunks_exact(w).position(any) else {
+        return 0..0;
+    };
+    let after = object.chunks_exact(w).rev().position(any).unwrap_or(0);
+    y0..object.len() / w - after
+}
+
 /// Inputs of [`creases`]: `width·height` buffers.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub(super) struct CreaseInput<'a> {
     pub(super) w: usize,
     pub(super) h: usize,
@@ -464,6 +532,8 @@ pub(super) struct CreaseInput<'a> {
     pub(super) pts: &'a [P3],
     pub(super) nrm: &'a [P3],
     pub(super) object: &'a [bool],
+    /// The rows outside which `object` is all `false` ([`object_rows`]).
+    pub(super) object_rows: core::ops::Range<usize>,
 }
 
 /// Concave-crease flags ([`CREASE_SOFT`], [`CREASE_BLOCK`]) per object pixel.
@@ -486,6 +556,7 @@ pub(super) fn creases(inp: &CreaseInput<'_>, params: &SegmenterParams, out: &mut
         pts,
         nrm,
         object,
+        ref object_rows,
     } = *inp;
     let r = params.crease_radius_px;
     let reach = r + params.normal_radius_px + params.smooth_radius_px;
@@ -518,22 +589,72 @@ pub(super) fn creases(inp: &CreaseInput<'_>, params: &SegmenterParams, out: &mut
             CREASE_SOFT
         }
     };
-    out.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-        for (x, out) in out.iter_mut().enumerate() {
-            let i = y * w + x;
-            if !object[i] {
-                continue;
+    // Rows without object pixels stay zero.
+    let rows = object_rows.start * w..object_rows.end * w;
+    out[rows]
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(k, out)| {
+            let y = object_rows.start + k;
+            for (x, out) in out.iter_mut().enumerate() {
+                let i = y * w + x;
+                if !object[i] {
+                    continue;
+                }
+                let c = pts[i];
+                let mut f = 0;
+                if x >= reach && x + reach < w && object[i - reach] && object[i + reach] {
+                    f |= judge(c, i - r, i + r);
+                }
+                let (up, down) = (i.wrapping_sub(reach * w), i + reach * w);
+                if y >= reach && y + reach < h && object[up] && object[down] {
+                    f |= judge(c, i - r * w, i + r * w);
+                }
+                *out = f;
             }
-            let c = pts[i];
-            let mut f = 0;
-            if x >= reach && x + reach < w && object[i - reach] && object[i + reach] {
-                f |= judge(c, i - r, i + r);
-            }
-            let (up, down) = (i.wrapping_sub(reach * w), i + reach * w);
-            if y >= reach && y + reach < h && object[up] && object[down] {
-                f |= judge(c, i - r * w, i + r * w);
-            }
-            *out = f;
-        }
-    });
+        });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fused_window_means_equal_the_three_passes_bit_for_bit() {
+        let (w, r) = (37, DEFAULT_SMOOTH_RADIUS_PX);
+        let params = SegmenterParams::default();
+        // Depths with holes, steps and noise; x and y planes of mixed signs.
+        let mut rng = riseg_core::rng::Pcg32::new(7);
+        let mut plane = |scale: f32, holes: bool| -> Vec<f32> {
+            (0..w + 2 * r)
+                .map(|_| {
+                    let v = rng.below(1000) as f32 / 1000.0;
+                    if holes && rng.below(6) == 0 {
+                        0.0
+                    } else if holes {
+                        0.5 + scale * v + 0.02 * (rng.below(3) as f32)
+                    } else {
+                        scale * (v - 0.5)
+                    }
+                })
+                .collect()
+        };
+        let row = [plane(0.3, false), plane(0.2, false), plane(0.01, true)];
+        let cz = &row[2][r..];
+        let tap = |d: usize| [&row[0][d..], &row[1][d..], &row[2][d..]];
+        let mut sums = RowScratch::with_width(w, 0).sums;
+        let mut general = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+        sums.start(cz, &params);
+        sums.add_taps(2 * r + 1, tap, cz);
+        let [gx, gy, gz] = &mut general;
+        sums.means(cz, gx, gy, gz);
+        let mut fused = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+        let taps = core::array::from_fn::<_, { 2 * DEFAULT_SMOOTH_RADIUS_PX + 1 }, _>(tap);
+        let [fx, fy, fz] = &mut fused;
+        sums.window_means(taps, cz, &params, [fx, fy, fz]);
+        let bits =
+            |v: &[Vec<f32>; 3]| -> Vec<u32> { v.iter().flatten().map(|f| f.to_bits()).collect() };
+        assert_eq!(bits(&fused), bits(&general));
+        assert!(general[2].contains(&0.0) && general[2].iter().any(|&z| z > 0.0));
+    }
 }

@@ -85,6 +85,9 @@ pub(super) struct GrowInput<'a> {
     pub(super) crease: &'a [u8],
     /// Object pixels (above the table, inside its hull).
     pub(super) object: &'a [bool],
+    /// The rows outside which `object` is all `false`
+    /// ([`object_rows`](super::geometry::object_rows)).
+    pub(super) object_rows: core::ops::Range<usize>,
     /// Footprint of each pixel, square metres per pixel at its depth.
     pub(super) px_area_m2: &'a [f32],
 }
@@ -243,6 +246,11 @@ pub(super) fn grow_segments(
     let n = w * h;
     let cos_normal = libm::cosf(params.grow_normal_deg.to_radians());
 
+    // Only the rows `y0..y1` hold object pixels: the serial passes below skip the others,
+    // whose pixels are in no segment (the same result as a pass over the whole frame).
+    let (y0, y1) = (inp.object_rows.start, inp.object_rows.end);
+    let rows = y0 * w..y1 * w;
+
     // 1. Union-find over the grown (non-crease) object pixels; a pixel's root is the least
     // index in its tree (see `union`), so the roots do not depend on the order of joins.
     s.links.resize(n, 0);
@@ -251,9 +259,20 @@ pub(super) fn grow_segments(
         .par_chunks_mut(w)
         .zip(s.parent.par_chunks_mut(w))
         .enumerate()
-        .for_each(|(y, (links, parent))| link_row(inp, params, cos_normal, y, links, parent));
+        .for_each(|(y, (links, parent))| {
+            if (y0..y1).contains(&y) {
+                link_row(inp, params, cos_normal, y, links, parent);
+            } else {
+                links.fill(0);
+                parent.fill(NONE);
+            }
+        });
     let links: &[u8] = &s.links;
     step.par_chunks_mut(w).enumerate().for_each(|(y, step)| {
+        if !(y0..y1).contains(&y) {
+            step.fill(0);
+            return;
+        }
         let row = &links[y * w..(y + 1) * w];
         let above = y.checked_sub(1).map(|u| &links[u * w..(u + 1) * w]);
         for (x, st) in step.iter_mut().enumerate() {
@@ -267,7 +286,7 @@ pub(super) fn grow_segments(
             *st = u8::from(f != 0);
         }
     });
-    for (i, &link) in links.iter().enumerate() {
+    for (i, &link) in links.iter().enumerate().take(rows.end).skip(rows.start) {
         if link & Links::JOIN_RIGHT != 0 {
             union(&mut s.parent, i as u32, i as u32 + 1);
         }
@@ -277,9 +296,11 @@ pub(super) fn grow_segments(
     }
     // Dense ids in the order of the roots; the seeds of rule 2 in row-major order.
     s.id.resize(n, NONE);
+    s.id[..rows.start].fill(NONE);
+    s.id[rows.end..].fill(NONE);
     s.queue.clear();
     let mut count = 0u32;
-    for (i, &link) in links.iter().enumerate() {
+    for (i, &link) in links.iter().enumerate().take(rows.end).skip(rows.start) {
         if link & Links::GROWN == 0 {
             s.id[i] = NONE;
             continue;
@@ -321,7 +342,7 @@ pub(super) fn grow_segments(
     s.first.resize(count, NONE);
     s.pairs.clear();
     let mut sum = RootSum::default();
-    for y in 0..h {
+    for y in y0..y1 {
         for x in 0..w {
             let i = y * w + x;
             let a = s.id[i];
@@ -401,7 +422,7 @@ pub(super) fn grow_segments(
             }
         }
         let mut sum = RootSum::default();
-        for (&d, &a) in s.id.iter().zip(inp.px_area_m2) {
+        for (&d, &a) in s.id[rows.clone()].iter().zip(&inp.px_area_m2[rows.clone()]) {
             if d == NONE {
                 continue;
             }

@@ -109,6 +109,17 @@ pub(super) fn heatmap(
     let (w, h) = (inp.w, inp.h);
     let n = w * h;
     let labels = inp.labels;
+    s.mark.clear();
+    s.mark.resize(n, 0);
+    s.rim.clear();
+    s.d_source.resize(n, 0.0);
+    s.d_background.resize(n, 0.0);
+    // Every pass that reads only segment pixels (and the contact gaps between them) runs
+    // over the segments' bounding box alone, in row-major order: the pixels it skips are
+    // unlabelled, so it does exactly what a pass over the whole frame does.
+    let Some(inner) = bounding_box(w, labels) else {
+        return;
+    };
 
     // Mean depth per segment, for pixels without a reading.
     s.mean_z.clear();
@@ -118,7 +129,8 @@ pub(super) fn heatmap(
     let mut run: Option<(usize, (f64, u32))> = None;
     // The least depth of a segment pixel (a filled hole's mean depth is no less).
     let mut z_min = f32::INFINITY;
-    for (&l, p) in labels.iter().zip(inp.pts) {
+    for i in inner.pixels(w) {
+        let (l, p) = (labels[i], &inp.pts[i]);
         if l == 0 || p[2] <= 0.0 {
             continue;
         }
@@ -151,69 +163,69 @@ pub(super) fn heatmap(
     };
 
     // 1a. Contacts and their gaps (and 1b. creases, steps and holes).
-    s.mark.clear();
-    s.mark.resize(n, 0);
-    s.rim.clear();
-    for (i, (x, y)) in (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).enumerate() {
-        let a = labels[i];
-        if a == 0 {
-            continue;
-        }
-        // 1b. Creases, steps and holes.
-        if inp.crease[i] & CREASE_SOFT != 0 || inp.step[i] != 0 || inp.hole[i] == HOLE {
-            s.mark[i] |= SOURCE;
-        }
-        // Every scan stops at once where each 4-neighbour is off the image or in `a`.
-        let same = |j: usize| labels[j] == a;
-        let inner = [x > 0, x + 1 < w, y > 0, y + 1 < h];
-        if !inner.contains(&false) && same(i - 1) && same(i + 1) && same(i - w) && same(i + w) {
-            continue;
-        }
-        s.rim.push(i as u32);
-        if (x == 0 || same(i - 1))
-            && (x + 1 == w || same(i + 1))
-            && (y == 0 || same(i - w))
-            && (y + 1 == h || same(i + w))
-        {
-            continue;
-        }
-        let z = depth(i);
-        let m_per_px = z * inp.inv_focal;
-        let gap_px = if m_per_px > 0.0 {
-            ((params.contact_gap_m / m_per_px) as usize).min(MAX_SCAN_PX)
-        } else {
-            0
-        };
-        let (x, y) = (x as isize, y as isize);
-        for (dx, dy) in [(1isize, 0isize), (-1, 0), (0, 1), (0, -1)] {
-            // Unlabelled pixels with depth count against the gap; holes do not.
-            let mut open = gap_px;
-            for t in 1..=MAX_SCAN_PX as isize {
-                let (qx, qy) = (x + dx * t, y + dy * t);
-                if qx < 0 || qy < 0 || qx >= w as isize || qy >= h as isize {
-                    break;
-                }
-                let q = qy as usize * w + qx as usize;
-                let b = labels[q];
-                if b == a {
-                    break;
-                }
-                if b == 0 {
-                    if inp.pts[q][2] > 0.0 {
-                        if open == 0 {
-                            break;
+    for (y, xs) in inner.rows() {
+        for x in xs {
+            let i = y * w + x;
+            let a = labels[i];
+            if a == 0 {
+                continue;
+            }
+            // 1b. Creases, steps and holes.
+            if inp.crease[i] & CREASE_SOFT != 0 || inp.step[i] != 0 || inp.hole[i] == HOLE {
+                s.mark[i] |= SOURCE;
+            }
+            // Every scan stops at once where each 4-neighbour is off the image or in `a`.
+            let same = |j: usize| labels[j] == a;
+            let inner = [x > 0, x + 1 < w, y > 0, y + 1 < h];
+            if !inner.contains(&false) && same(i - 1) && same(i + 1) && same(i - w) && same(i + w) {
+                continue;
+            }
+            s.rim.push(i as u32);
+            if (x == 0 || same(i - 1))
+                && (x + 1 == w || same(i + 1))
+                && (y == 0 || same(i - w))
+                && (y + 1 == h || same(i + w))
+            {
+                continue;
+            }
+            let z = depth(i);
+            let m_per_px = z * inp.inv_focal;
+            let gap_px = if m_per_px > 0.0 {
+                ((params.contact_gap_m / m_per_px) as usize).min(MAX_SCAN_PX)
+            } else {
+                0
+            };
+            let (x, y) = (x as isize, y as isize);
+            for (dx, dy) in [(1isize, 0isize), (-1, 0), (0, 1), (0, -1)] {
+                // Unlabelled pixels with depth count against the gap; holes do not.
+                let mut open = gap_px;
+                for t in 1..=MAX_SCAN_PX as isize {
+                    let (qx, qy) = (x + dx * t, y + dy * t);
+                    if qx < 0 || qy < 0 || qx >= w as isize || qy >= h as isize {
+                        break;
+                    }
+                    let q = qy as usize * w + qx as usize;
+                    let b = labels[q];
+                    if b == a {
+                        break;
+                    }
+                    if b == 0 {
+                        if inp.pts[q][2] > 0.0 {
+                            if open == 0 {
+                                break;
+                            }
+                            open -= 1;
                         }
-                        open -= 1;
+                        continue;
                     }
-                    continue;
-                }
-                if (depth(q) - z).abs() < params.contact_depth_m {
-                    s.mark[i] |= SOURCE;
-                    for u in 1..t {
-                        s.mark[(y + dy * u) as usize * w + (x + dx * u) as usize] |= GAP;
+                    if (depth(q) - z).abs() < params.contact_depth_m {
+                        s.mark[i] |= SOURCE;
+                        for u in 1..t {
+                            s.mark[(y + dy * u) as usize * w + (x + dx * u) as usize] |= GAP;
+                        }
                     }
+                    break;
                 }
-                break;
             }
         }
     }
@@ -226,11 +238,6 @@ pub(super) fn heatmap(
     // there over the box alone, and the distance to the background over the box grown by a
     // pixel (a background pixel beyond it is farther than the grown box's edge, which is
     // background, in both coordinates).
-    s.d_source.resize(n, 0.0);
-    s.d_background.resize(n, 0.0);
-    let Some(inner) = bounding_box(w, labels) else {
-        return;
-    };
     let outer = Window {
         x0: inner.x0.saturating_sub(1),
         x1: (inner.x1 + 1).min(w),
@@ -265,6 +272,7 @@ pub(super) fn heatmap(
     // 1d. Packs: segments larger than one object (needs the distance to the background).
     pack_cuts(
         inp,
+        inner,
         params,
         &s.d_background,
         (&mut s.moments, &mut s.cuts),
@@ -282,32 +290,38 @@ pub(super) fn heatmap(
         &mut s.d_source,
     );
     let (d_source, d_background) = (&s.d_source, &s.d_background);
-    heat.par_chunks_mut(w).enumerate().for_each(|(y, heat)| {
-        for (x, heat) in heat.iter_mut().enumerate() {
-            let i = y * w + x;
-            let label = labels[i];
-            if label == 0 {
-                if mark[i] & GAP != 0 {
-                    *heat = HEAT_UNCERTAIN;
+    // Contact gaps lie between segment pixels of one row or column: in the box too.
+    heat[inner.y0 * w..inner.y1 * w]
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(k, heat)| {
+            let y = inner.y0 + k;
+            for (x, heat) in heat.iter_mut().enumerate().take(inner.x1).skip(inner.x0) {
+                let i = y * w + x;
+                let label = labels[i];
+                if label == 0 {
+                    if mark[i] & GAP != 0 {
+                        *heat = HEAT_UNCERTAIN;
+                    }
+                    continue;
                 }
-                continue;
+                let m_per_px = depth(i) * inp.inv_focal;
+                let d_s = d_source[i].sqrt() * m_per_px;
+                let d_b = d_background[i].sqrt() * m_per_px;
+                *heat = if d_s < params.band_m {
+                    let band = f32::from(HEAT_CERTAIN - HEAT_UNCERTAIN);
+                    HEAT_UNCERTAIN
+                        + ((band * d_s / params.band_m) as u8)
+                            .min(HEAT_CERTAIN - HEAT_UNCERTAIN - 1)
+                } else if d_b < params.rim_m {
+                    params.rim_heat
+                } else {
+                    let t = ((d_s - params.band_m).min(d_b - params.rim_m) / params.certain_ramp_m)
+                        .clamp(0.0, 1.0);
+                    HEAT_CERTAIN + (f32::from(u8::MAX - HEAT_CERTAIN) * t) as u8
+                };
             }
-            let m_per_px = depth(i) * inp.inv_focal;
-            let d_s = d_source[i].sqrt() * m_per_px;
-            let d_b = d_background[i].sqrt() * m_per_px;
-            *heat = if d_s < params.band_m {
-                let band = f32::from(HEAT_CERTAIN - HEAT_UNCERTAIN);
-                HEAT_UNCERTAIN
-                    + ((band * d_s / params.band_m) as u8).min(HEAT_CERTAIN - HEAT_UNCERTAIN - 1)
-            } else if d_b < params.rim_m {
-                params.rim_heat
-            } else {
-                let t = ((d_s - params.band_m).min(d_b - params.rim_m) / params.certain_ramp_m)
-                    .clamp(0.0, 1.0);
-                HEAT_CERTAIN + (f32::from(u8::MAX - HEAT_CERTAIN) * t) as u8
-            };
-        }
-    });
+        });
 }
 
 /// The smallest window holding every labelled pixel; `None` if there is none.
@@ -382,6 +396,7 @@ impl Moments {
 /// rule 1, packs).
 fn pack_cuts(
     inp: &HeatInput<'_>,
+    inner: Window,
     params: &SegmenterParams,
     d_background: &[f32],
     (moments, cuts): (&mut Vec<Moments>, &mut Vec<Option<Cut>>),
@@ -400,13 +415,8 @@ fn pack_cuts(
         let h = p[0] * n[0] + p[1] * n[1] + p[2] * n[2];
         [p[0] - h * n[0], p[1] - h * n[1], p[2] - h * n[2]]
     };
-    for (((&l, &p), &mk), &d2_px) in inp
-        .labels
-        .iter()
-        .zip(inp.pts)
-        .zip(mark.iter())
-        .zip(d_background)
-    {
+    for i in inner.pixels(inp.w) {
+        let (l, p, mk, d2_px) = (inp.labels[i], inp.pts[i], mark[i], d_background[i]);
         if l != 0
             && let Some(m) = moments.get_mut(usize::from(l))
         {
@@ -455,7 +465,8 @@ fn pack_cuts(
     if cuts.iter().all(Option::is_none) {
         return;
     }
-    for (i, (&l, &p)) in inp.labels.iter().zip(inp.pts).enumerate() {
+    for i in inner.pixels(inp.w) {
+        let (l, p) = (inp.labels[i], inp.pts[i]);
         if l == 0 || p[2] <= 0.0 {
             continue;
         }

@@ -190,11 +190,16 @@ pub(super) struct PlaneScratch {
     /// them reads memory in order.
     cand_pts: Vec<P3>,
     cand_nrm: Vec<P3>,
+    /// Each candidate's grid cell.
+    cand_cell: Vec<u32>,
     ransac: RansacScratch,
     flat: Vec<[f32; 2]>,
+    keys: Vec<u64>,
+    /// The bend's samples: plane coordinates and height.
+    bend_samples: Vec<[f64; 3]>,
     hull: Vec<[f32; 2]>,
     grid: Vec<u32>,
-    queue: Vec<u32>,
+    queue: Vec<[u32; 2]>,
 }
 
 /// Scratch of [`ransac`].
@@ -267,6 +272,19 @@ fn is_inlier(plane: &TablePlane, p: P3, n: P3, cos_normal: f32, params: &Segment
         && dot(plane.normal_array(), n) >= cos_normal
 }
 
+/// The candidate grid's spacing, pixels: the grid's cells are the pixels
+/// `(step/2 + gx·step, step/2 + gy·step)`.
+fn grid_step(w: usize, h: usize) -> usize {
+    ((w * h / TARGET_CANDIDATES) as f64).sqrt().floor().max(1.0) as usize
+}
+
+/// `true` for the rows of a `w × h` frame that hold candidate grid cells: the only rows
+/// whose points and normals [`fit_table`] reads.
+pub(super) fn is_grid_row(w: usize, h: usize, y: usize) -> bool {
+    let step = grid_step(w, h);
+    y >= step / 2 && (y - step / 2) % step == 0
+}
+
 /// Fits the table (see the module docs).
 ///
 /// # Errors
@@ -279,7 +297,7 @@ pub(super) fn fit_table(
     params: &SegmenterParams,
     s: &mut PlaneScratch,
 ) -> Result<TableFit, SegmentError> {
-    let step = ((w * h / TARGET_CANDIDATES) as f64).sqrt().floor().max(1.0) as usize;
+    let step = grid_step(w, h);
     let (gw, gh) = (
         w.saturating_sub(step / 2).div_ceil(step),
         h.saturating_sub(step / 2).div_ceil(step),
@@ -292,10 +310,12 @@ pub(super) fn fit_table(
     };
     s.cand_pts.clear();
     s.cand_nrm.clear();
-    for i in grid_pixels() {
+    s.cand_cell.clear();
+    for (cell, i) in grid_pixels().enumerate() {
         if pts[i][2] > 0.0 && nrm[i] != [0.0; 3] {
             s.cand_pts.push(pts[i]);
             s.cand_nrm.push(nrm[i]);
+            s.cand_cell.push(cell as u32);
         }
     }
     let (cand_pts, cand_nrm) = (&s.cand_pts, &s.cand_nrm);
@@ -356,64 +376,63 @@ pub(super) fn fit_table(
                 (fit.height_of(p).abs() <= tol && dot(n, q) >= cos_normal)
                     .then(|| (p, plane.height_of(p)))
             }),
+            &mut s.bend_samples,
         ) else {
             break;
         };
         table.bend = bend;
     }
 
+    // Only candidates can be table cells (a cell without a normal fails the normal test),
+    // and they are in cell order: both passes read the compact candidates.
     s.grid.clear();
     s.grid.resize(gw * gh, 0);
-    for (cell, i) in s.grid.iter_mut().zip(grid_pixels()) {
-        let (p, q) = (pts[i], nrm[i]);
-        if p[2] > 0.0
-            && table.height_of(p).abs() <= params.plane_tolerance_m(p[2])
-            && dot(n, q) >= cos_normal
-        {
-            *cell = 1;
+    for ((&p, &q), &cell) in cand_pts.iter().zip(cand_nrm).zip(&s.cand_cell) {
+        if table.height_of(p).abs() <= params.plane_tolerance_m(p[2]) && dot(n, q) >= cos_normal {
+            s.grid[cell as usize] = 1;
         }
     }
     let largest = largest_component(gw, gh, &mut s.grid, &mut s.queue);
     s.flat.clear();
-    for (&c, i) in s.grid.iter().zip(grid_pixels()) {
-        if c == largest {
-            let p = pts[i];
+    for (&p, &cell) in cand_pts.iter().zip(&s.cand_cell) {
+        if s.grid[cell as usize] == largest {
             s.flat.push([dot(e1, p), dot(e2, p)]);
         }
     }
-    convex_hull(&mut s.flat, &mut s.hull);
+    convex_hull(&mut s.flat, &mut s.keys, &mut s.hull);
     table.hull = Hull::new(e1, e2, &s.hull);
     Ok(table)
 }
 
 /// Labels the 4-connected components of the cells marked `1` in `grid` with ids from 2
 /// on, and returns the id of the largest (0 if there is none).
-fn largest_component(gw: usize, gh: usize, grid: &mut [u32], queue: &mut Vec<u32>) -> u32 {
+fn largest_component(gw: usize, gh: usize, grid: &mut [u32], queue: &mut Vec<[u32; 2]>) -> u32 {
     let (mut best, mut best_size, mut next) = (0, 0, 2);
     for start in 0..gw * gh {
         if grid[start] != 1 {
             continue;
         }
         queue.clear();
-        queue.push(start as u32);
+        // Cells as (x, y), so that no division finds a cell's column.
+        queue.push([(start % gw) as u32, (start / gw) as u32]);
         grid[start] = next;
         let mut head = 0;
-        while let Some(&g) = queue.get(head) {
+        while let Some(&[x, y]) = queue.get(head) {
             head += 1;
-            let g = g as usize;
-            let (x, y) = (g % gw, g / gw);
-            for nb in [
-                (x > 0).then(|| g - 1),
-                (x + 1 < gw).then(|| g + 1),
-                (y > 0).then(|| g - gw),
-                (y + 1 < gh).then(|| g + gw),
+            let (x, y) = (x as usize, y as usize);
+            let g = y * gw + x;
+            for (nb, nx, ny) in [
+                (x > 0).then(|| (g - 1, x - 1, y)),
+                (x + 1 < gw).then(|| (g + 1, x + 1, y)),
+                (y > 0).then(|| (g - gw, x, y - 1)),
+                (y + 1 < gh).then(|| (g + gw, x, y + 1)),
             ]
             .into_iter()
             .flatten()
             {
                 if grid[nb] == 1 {
                     grid[nb] = next;
-                    queue.push(nb as u32);
+                    queue.push([nx as u32, ny as u32]);
                 }
             }
         }
@@ -458,22 +477,32 @@ impl Bend {
 
     /// Fits the plane heights `(p, h)` of the table's points; `None` if there are too few or
     /// they do not determine a quadratic.
-    fn fit(e1: P3, e2: P3, points: impl Iterator<Item = (P3, f32)>) -> Option<Self> {
-        let mut samples: Vec<(f64, f64, f64)> = Vec::new();
+    fn fit(
+        e1: P3,
+        e2: P3,
+        points: impl Iterator<Item = (P3, f32)>,
+        samples: &mut Vec<[f64; 3]>,
+    ) -> Option<Self> {
+        samples.clear();
+        // The centre's sums along the way, in the order and from the `-0.0` that
+        // `Iterator::sum` uses.
+        let (mut sum_u, mut sum_v) = (-0.0f64, -0.0f64);
         for (p, h) in points {
-            samples.push((f64::from(dot(e1, p)), f64::from(dot(e2, p)), f64::from(h)));
+            let (u, v) = (f64::from(dot(e1, p)), f64::from(dot(e2, p)));
+            sum_u += u;
+            sum_v += v;
+            samples.push([u, v, f64::from(h)]);
         }
         if samples.len() < 12 {
             return None;
         }
         let k = samples.len() as f64;
-        let cu = samples.iter().map(|s| s.0).sum::<f64>() / k;
-        let cv = samples.iter().map(|s| s.1).sum::<f64>() / k;
+        let (cu, cv) = (sum_u / k, sum_v / k);
         // The normal equations: `ata` is symmetric, so only its upper triangle is summed
         // (each entry the same products in the same order) and then mirrored.
         let mut upper = [[0.0f64; 6]; 6];
         let mut tb = [0.0f64; 6];
-        for &(u, v, h) in &samples {
+        for &[u, v, h] in samples.iter() {
             let t = Self::terms(u - cu, v - cv);
             for a in 0..6 {
                 for b in a..6 {
@@ -619,11 +648,43 @@ fn refit(
     Some(fit)
 }
 
+/// The bits of `v` as an unsigned integer in [`f32::total_cmp`]'s order (a bijection).
+fn total_order_key(v: f32) -> u32 {
+    let bits = v.to_bits();
+    // Negative values: flip all but the sign bit (as `total_cmp` does), then the sign bit
+    // makes signed order unsigned.
+    bits ^ ((((bits as i32) >> 31) as u32) >> 1) ^ 0x8000_0000
+}
+
+/// The inverse of [`total_order_key`].
+fn from_total_order_key(key: u32) -> f32 {
+    let bits = key ^ 0x8000_0000;
+    f32::from_bits(bits ^ ((((bits as i32) >> 31) as u32) >> 1))
+}
+
+/// Sorts `pts` by `x`, then `y`, each in [`f32::total_cmp`]'s order, through one `u64` key
+/// per point (`keys` is scratch): points with equal keys are equal bit for bit, so the
+/// result is the one a comparison sort gives, at the cost of a sort of integers.
+fn sort_points(pts: &mut [[f32; 2]], keys: &mut Vec<u64>) {
+    keys.clear();
+    keys.extend(
+        pts.iter()
+            .map(|p| u64::from(total_order_key(p[0])) << 32 | u64::from(total_order_key(p[1]))),
+    );
+    keys.sort_unstable();
+    for (p, &k) in pts.iter_mut().zip(keys.iter()) {
+        *p = [
+            from_total_order_key((k >> 32) as u32),
+            from_total_order_key(k as u32),
+        ];
+    }
+}
+
 /// Andrew's monotone chain: the convex hull of `pts` counter-clockwise into `out`
-/// (`pts` is sorted in place).
-fn convex_hull(pts: &mut [[f32; 2]], out: &mut Vec<[f32; 2]>) {
+/// (`pts` is sorted in place, `keys` is scratch).
+fn convex_hull(pts: &mut [[f32; 2]], keys: &mut Vec<u64>, out: &mut Vec<[f32; 2]>) {
     out.clear();
-    pts.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    sort_points(pts, keys);
     if pts.len() < 3 {
         out.extend_from_slice(pts);
         return;
@@ -662,8 +723,42 @@ mod tests {
             [0.2, 0.7],
         ];
         let mut hull = Vec::new();
-        convex_hull(&mut pts, &mut hull);
+        convex_hull(&mut pts, &mut Vec::new(), &mut hull);
         assert_eq!(hull, vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
+    }
+
+    #[test]
+    fn points_sort_in_total_cmp_order() {
+        let values = [
+            f32::NEG_INFINITY,
+            -2.5,
+            -1e-30,
+            -0.0,
+            0.0,
+            1e-30,
+            0.25,
+            7.0,
+            f32::INFINITY,
+            f32::NAN,
+            -f32::NAN,
+        ];
+        for &v in &values {
+            assert_eq!(
+                from_total_order_key(total_order_key(v)).to_bits(),
+                v.to_bits()
+            );
+        }
+        let mut pts: Vec<[f32; 2]> = values
+            .iter()
+            .flat_map(|&a| values.iter().map(move |&b| [a, b]))
+            .rev()
+            .collect();
+        let mut expected = pts.clone();
+        expected.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+        sort_points(&mut pts, &mut Vec::new());
+        let bits =
+            |v: &[[f32; 2]]| -> Vec<[u32; 2]> { v.iter().map(|p| p.map(f32::to_bits)).collect() };
+        assert_eq!(bits(&pts), bits(&expected));
     }
 
     #[test]

@@ -153,9 +153,13 @@ fn uncertain_at(x: Real, y: Real) -> Cluster {
     }
 }
 
-/// FindAction's certain clusters of `s`, and its qualifying pairs, best first, against
-/// the given uncertain centres (instead of k-means ones).
-fn ranked(s: &Scene, cfg: &Config, uncertain: &[Cluster]) -> (Vec<Cluster>, Vec<Pair>) {
+/// FindAction's certain clusters of `s` and what `then` makes of their region map (with
+/// the PRNG where the pair ranking leaves it).
+fn with_region_map<R>(
+    s: &Scene,
+    cfg: &Config,
+    then: impl FnOnce(&RegionMap<'_>, &mut Pcg32) -> R,
+) -> (Vec<Cluster>, R) {
     let k = intrinsics();
     let heat = ImageView::packed(W, H, &s.heat).unwrap();
     let depth = ImageView::packed(W, H, &s.depth).unwrap();
@@ -188,8 +192,14 @@ fn ranked(s: &Scene, cfg: &Config, uncertain: &[Cluster]) -> (Vec<Cluster>, Vec<
         region_of: &found.region_of,
         cfg,
     };
-    let pairs = rank_pairs(&map, uncertain, cfg);
-    (found.clusters.to_vec(), pairs.to_vec())
+    let made = then(&map, &mut rng);
+    (found.clusters.to_vec(), made)
+}
+
+/// FindAction's certain clusters of `s`, and its qualifying pairs, best first, against
+/// the given uncertain centres (instead of k-means ones).
+fn ranked(s: &Scene, cfg: &Config, uncertain: &[Cluster]) -> (Vec<Cluster>, Vec<Pair>) {
+    with_region_map(s, cfg, |map, _| rank_pairs(map, uncertain, cfg).to_vec())
 }
 
 /// The push FindAction makes on `s` with `mask`, against the given uncertain centres
@@ -200,42 +210,11 @@ fn chosen(
     cfg: &Config,
     uncertain: &[Cluster],
 ) -> (Vec<Cluster>, Option<(Pair, Push)>) {
-    let k = intrinsics();
-    let heat = ImageView::packed(W, H, &s.heat).unwrap();
-    let depth = ImageView::packed(W, H, &s.depth).unwrap();
     let mask = ImageView::packed(W, H, mask).unwrap();
-    let len = ActionScratchLen::for_config(cfg, W, H);
-    let (mut cbuf, mut ubuf) = (vec![0.0; len.certain], vec![0.0; len.uncertain]);
-    let mut rows = vec![0u32; len.row_counts];
-    let mut runs_buf = vec![0u32; len.runs];
-    let mut row_runs = vec![0u32; len.row_runs];
-    let mut nearest = vec![0u32; len.nearest];
-    let mut cp = Planes::split(&mut cbuf, len.samples).unwrap();
-    let mut up = Planes::split(&mut ubuf, len.samples).unwrap();
-    let mut rng = Pcg32::new(cfg.seed);
-    let (nc, _) = sample_classes(&heat, &depth, cfg, &mut rng, &mut cp, &mut up, &mut rows);
-    let mut runs = RunPlanes::split(&mut runs_buf, len.max_runs).unwrap();
-    let n_runs = label_runs(&heat, cfg.certain_from, &mut runs, &mut row_runs);
-    let found = certain_clusters(
-        &mut runs,
-        n_runs,
-        &row_runs,
-        &cp.prefix(nc),
-        &mut nearest,
-        &k,
-        cfg,
-    );
-    let map = RegionMap {
-        heatmap: &heat,
-        runs: runs.view(n_runs),
-        row_runs: &row_runs,
-        clusters: &found.clusters,
-        region_of: &found.region_of,
-        cfg,
-    };
-    let pairs = rank_pairs(&map, uncertain, cfg);
-    let push = choose_push(&map, &mask, &pairs, &k, cfg, &mut rng);
-    (found.clusters.to_vec(), push)
+    with_region_map(s, cfg, |map, rng| {
+        let pairs = rank_pairs(map, uncertain, cfg);
+        choose_push(map, &mask, &pairs, &intrinsics(), cfg, rng)
+    })
 }
 
 /// Sorted cluster indices of a pair.

@@ -178,15 +178,8 @@ impl WindowSums {
         let taps = taps.map(|t| t.map(|plane| &plane[..w]));
         let (cz, jump) = (&cz[..w], &self.jump[..w]);
         for x in 0..w {
-            let (mut ax, mut ay, mut az, mut an) = (sx[x], sy[x], sz[x], sn[x]);
-            for [qx, qy, qz] in &taps {
-                let m = mask((qz[x] > 0.0) & ((qz[x] - cz[x]).abs() <= jump[x]));
-                ax += keep(qx[x], m);
-                ay += keep(qy[x], m);
-                az += keep(qz[x], m);
-                an += keep(1.0, m);
-            }
-            (sx[x], sy[x], sz[x], sn[x]) = (ax, ay, az, an);
+            [sx[x], sy[x], sz[x], sn[x]] =
+                sum_taps(&taps, x, cz[x], jump[x], [sx[x], sy[x], sz[x], sn[x]]);
         }
     }
 
@@ -213,14 +206,7 @@ impl WindowSums {
         let (cz, jump) = (&cz[..w], &self.jump[..w]);
         let (ox, oy, oz) = (&mut ox[..w], &mut oy[..w], &mut oz[..w]);
         for x in 0..w {
-            let (mut ax, mut ay, mut az, mut an) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
-            for [qx, qy, qz] in &taps {
-                let m = mask((qz[x] > 0.0) & ((qz[x] - cz[x]).abs() <= jump[x]));
-                ax += keep(qx[x], m);
-                ay += keep(qy[x], m);
-                az += keep(qz[x], m);
-                an += keep(1.0, m);
-            }
+            let [ax, ay, az, an] = sum_taps(&taps, x, cz[x], jump[x], [0.0; 4]);
             let m = mask(cz[x] > 0.0);
             ox[x] = keep(ax / an, m);
             oy[x] = keep(ay / an, m);
@@ -452,6 +438,27 @@ pub(super) fn normals(
             }
         },
     );
+}
+
+/// `sums` (x, y, z and count) plus the points of `taps` at column `x` whose depth is
+/// within `jump` of the centre depth `cz`, in tap order (the branch-free form of
+/// `WindowSums::add`; inlined so the sums stay in registers).
+#[inline(always)]
+fn sum_taps<const N: usize>(
+    taps: &[[&[f32]; 3]; N],
+    x: usize,
+    cz: f32,
+    jump: f32,
+    [mut ax, mut ay, mut az, mut an]: [f32; 4],
+) -> [f32; 4] {
+    for [qx, qy, qz] in taps {
+        let m = mask((qz[x] > 0.0) & ((qz[x] - cz).abs() <= jump));
+        ax += keep(qx[x], m);
+        ay += keep(qy[x], m);
+        az += keep(qz[x], m);
+        an += keep(1.0, m);
+    }
+    [ax, ay, az, an]
 }
 
 /// All ones if `on`, else zero: a lane mask for [`keep`] and [`pick`].

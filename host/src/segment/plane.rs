@@ -282,7 +282,7 @@ fn grid_step(w: usize, h: usize) -> usize {
 /// whose points and normals [`fit_table`] reads.
 pub(super) fn is_grid_row(w: usize, h: usize, y: usize) -> bool {
     let step = grid_step(w, h);
-    y >= step / 2 && (y - step / 2) % step == 0
+    y >= step / 2 && (y - step / 2).is_multiple_of(step)
 }
 
 /// Fits the table (see the module docs).

@@ -1,9 +1,20 @@
 //! The loop's commands as a user runs them: `riseg demo`, `riseg bench --json`, `riseg run`.
 
-use std::process::Command;
+use std::process::{Command, Output};
 
 fn riseg() -> Command {
     Command::new(env!("CARGO_BIN_EXE_riseg"))
+}
+
+/// Runs `cmd` and checks it succeeded (its stderr in the failure message).
+fn succeeds(cmd: &mut Command) -> Output {
+    let out = cmd.output().expect("run riseg");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
 }
 
 #[test]
@@ -14,12 +25,7 @@ fn the_default_command_is_the_demo_and_it_writes_pictures_and_a_report() {
     std::fs::create_dir_all(&earlier).expect("demo folder");
     std::fs::write(earlier.join("frame_9.png"), b"stale").expect("stale frame");
     std::fs::write(earlier.join("notes.txt"), b"mine").expect("user file");
-    let out = riseg().current_dir(dir.path()).output().expect("run riseg");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = succeeds(riseg().current_dir(dir.path()));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("| push |"), "{stdout}");
     let demo = dir.path().join("riseg-demo");
@@ -71,15 +77,10 @@ fn the_default_command_is_the_demo_and_it_writes_pictures_and_a_report() {
 fn bench_json_has_the_table_one_shape() {
     let dir = tempfile::tempdir().expect("temp dir");
     let json = dir.path().join("bench.json");
-    let out = riseg()
-        .args(["bench", "--scenes", "1", "--seed", "4", "--json"])
-        .arg(&json)
-        .output()
-        .expect("run riseg");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = succeeds(
+        riseg()
+            .args(["bench", "--scenes", "1", "--seed", "4", "--json"])
+            .arg(&json),
     );
     let v: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("valid json");
@@ -225,18 +226,13 @@ fn rerun_file_is_named_when_unwritable_and_appears_only_when_complete() {
     assert!(listing().is_empty(), "{:?}", listing());
 
     let rrd = dir.path().join("demo.rrd");
-    let out = riseg()
-        .arg("demo")
-        .arg("--out")
-        .arg(dir.path().join("demo"))
-        .arg("--rerun")
-        .arg(&rrd)
-        .output()
-        .expect("run riseg");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    succeeds(
+        riseg()
+            .arg("demo")
+            .arg("--out")
+            .arg(dir.path().join("demo"))
+            .arg("--rerun")
+            .arg(&rrd),
     );
     assert_eq!(listing(), ["demo", "demo.rrd"]);
     // rerun's stream header, and its stream footer (written when the file is closed: the

@@ -8,5 +8,5 @@ CACHE="${RISEG_CI_CACHE:-$HOME/.cache/riseg-ci}"
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$CACHE/target}"
 RUNS="${RUNS:-7}"
 web/build.sh >/dev/null
-native="$(cargo run --quiet --release -p riseg-wasm --example bench_stages -- web/scenes/packed "$RUNS")"
+native="$(cargo run --quiet --release -p riseg-wasm --features js --example bench_stages -- web/scenes/packed "$RUNS")"
 NATIVE="$native" RUNS="$RUNS" node web/bench/wasm-vs-native.js

@@ -38,7 +38,7 @@ target="$CROSS_TARGET_DIR/simd128"
 RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1 CARGO_TARGET_DIR="$target" \
   CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS="-C target-feature=+simd128" \
   CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_LINKER=/usr/lib/llvm-22/bin/wasm-ld /usr/bin/cargo build \
-  --quiet --release -p riseg-wasm --target wasm32-unknown-unknown -Z build-std=std,panic_abort
+  --quiet --release -p riseg-wasm --features js --target wasm32-unknown-unknown -Z build-std=std,panic_abort
 
 "$bindgen" --target web --no-typescript --out-dir web/pkg \
   "$target/wasm32-unknown-unknown/release/riseg_wasm.wasm"

@@ -2,7 +2,7 @@
 //! riseg-wasm's `Session`, the code the browser runs, on the bundled packed scene (frames 0
 //! and 1, 640x480), timed natively. Not a test: it prints the median of several runs.
 //!
-//! `cargo run --release -p riseg-wasm --example bench_stages [SCENE_DIR] [RUNS]`
+//! `cargo run --release -p riseg-wasm --features js --example bench_stages [SCENE_DIR] [RUNS]`
 
 use std::{path::Path, time::Instant};
 

@@ -277,6 +277,31 @@ fn scene(seed: u64, layout: Layout) -> anyhow::Result<()> {
                 println!("{line}");
             }
         }
+        if t + 1 == frames.len() {
+            // Every touching pair the static segmentation merged in every frame: its worst
+            // relative motion over the pushes and whether RISeg's last mask separated it.
+            for &(a, b) in &touching {
+                let always_merged = frames.iter().all(|q| {
+                    let seg = static_segments(&q.truth, &q.static_labels);
+                    matches!((seg.get(&a), seg.get(&b)), (Some(x), Some(y)) if x == y && *x != 0)
+                });
+                if !always_merged {
+                    continue;
+                }
+                let (mm, deg) = (1..=t).fold((0.0f32, 0.0f32), |(m, d), s| {
+                    let (p, q) = (&frames[s - 1], &frames[s]);
+                    let (x, y) = disagreement(
+                        [&p.poses[&a], &q.poses[&a]],
+                        [&p.poses[&b], &q.poses[&b]],
+                    );
+                    (m.max(x), d.max(y))
+                });
+                println!(
+                    "PAIR {seed} {a} {b} {mm:.3} {deg:.3} {}",
+                    u8::from(rl[&a].0 != rl[&b].0)
+                );
+            }
+        }
         let mut groups: BTreeMap<u16, BTreeSet<u16>> = BTreeMap::new();
         for (o, (g, _)) in &cl {
             groups.entry(*g).or_default().insert(*o);

@@ -18,7 +18,8 @@ use std::collections::{BTreeMap, BTreeSet};
 use riseg::{
     cli::{config::Settings, models::Models},
     eval::ceiling::{
-        CeilingFrame, CeilingParams, MotionCeiling, same_motion, static_segments, touching_pairs,
+        CeilingFrame, CeilingParams, MotionCeiling, motion_gaps, same_motion, static_segments,
+        touching_pairs,
     },
     eval::metrics::image_metrics,
     io::scene::ObjectPose,
@@ -86,21 +87,11 @@ fn best_f(truth: &[u16], pred: &[u16]) -> BTreeMap<u16, f32> {
     best
 }
 
-/// The pair's motion disagreement on one push: (max over both centres of the distance
-/// between the two motions' images, mm; rotation between the motions, degrees).
+/// The pair's motion disagreement on one push: (the larger distance between the two
+/// motions' images of either centre, mm; the rotation between the motions, degrees).
 fn disagreement(a: [&Pose; 2], b: [&Pose; 2]) -> (f32, f32) {
-    let ma = a[1] * a[0].inverse();
-    let mb = b[1] * b[0].inverse();
-    let between = ma.rotation.rotation_to(&mb.rotation);
-    let deg = (2.0 * between.imag().norm().atan2(between.w.abs())).to_degrees();
-    let mm = [a[0], b[0]]
-        .iter()
-        .map(|p| {
-            let c = nalgebra::Point3::from(p.translation.vector);
-            1e3 * (ma * c - mb * c).norm()
-        })
-        .fold(0.0f32, f32::max);
-    (mm, deg)
+    let (angle_rad, apart_m) = motion_gaps(a, b);
+    (1e3 * apart_m, angle_rad.to_degrees())
 }
 
 /// One object's own motion on one push: (centre displacement, mm; rotation, degrees).
@@ -114,11 +105,10 @@ fn own(p: [&Pose; 2]) -> (f32, f32) {
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let layout = match args.first().map(String::as_str) {
-        Some("loose") => Layout::Loose,
-        Some("mixed") => Layout::Mixed,
-        _ => Layout::Packed,
-    };
+    let layout = Layout::ALL
+        .into_iter()
+        .find(|l| args.first().is_some_and(|a| a == l.name()))
+        .unwrap_or(Layout::Packed);
     for seed in args.iter().skip(1).filter_map(|a| a.parse::<u64>().ok()) {
         scene(seed, layout)?;
     }
@@ -290,10 +280,8 @@ fn scene(seed: u64, layout: Layout) -> anyhow::Result<()> {
                 }
                 let (mm, deg) = (1..=t).fold((0.0f32, 0.0f32), |(m, d), s| {
                     let (p, q) = (&frames[s - 1], &frames[s]);
-                    let (x, y) = disagreement(
-                        [&p.poses[&a], &q.poses[&a]],
-                        [&p.poses[&b], &q.poses[&b]],
-                    );
+                    let (x, y) =
+                        disagreement([&p.poses[&a], &q.poses[&a]], [&p.poses[&b], &q.poses[&b]]);
                     (m.max(x), d.max(y))
                 });
                 println!(

@@ -272,7 +272,8 @@ pub fn same_motion(a: [&Pose; 2], b: [&Pose; 2], params: &CeilingParams) -> bool
 /// How far apart two motions are (`a`, `b` as in [`same_motion`]): the rotation between
 /// them, radians, and the larger distance between their images of either object's
 /// centre, metres.
-fn motion_gaps(a: [&Pose; 2], b: [&Pose; 2]) -> (f32, f32) {
+#[must_use]
+pub fn motion_gaps(a: [&Pose; 2], b: [&Pose; 2]) -> (f32, f32) {
     let motion_a = a[1] * a[0].inverse();
     let motion_b = b[1] * b[0].inverse();
     // 2·atan2(|v|, |w|) of the quaternion between them: unlike nalgebra's acos form, it
@@ -545,21 +546,20 @@ mod tests {
 
     #[test]
     fn disagreement_is_the_larger_gap_over_its_floor() {
-        let p = CeilingParams::DEFAULT;
-        let a0 = Pose::translation(0.0, 0.0, 0.0);
-        let b0 = Pose::translation(0.05, 0.0, 0.0);
-        let shift = |pose: &Pose, dx: f32| Pose::translation(dx, 0.0, 0.0) * pose;
-        let d = disagreement([&a0, &shift(&a0, 0.0205)], [&b0, &shift(&b0, 0.02)], &p);
+        // Objects 1 and 2 of the fixture, 5 cm apart, shifted by 20.5 and 20 mm: 0.5 mm
+        // apart is half the translation floor.
+        let pose = |label, x_m| at(label, x_m).world_from_object;
+        let (a0, b0) = (pose(1, 0.0), pose(2, 0.05));
+        let (a1, b1) = (pose(1, 0.0205), pose(2, 0.07));
+        let d = disagreement([&a0, &a1], [&b0, &b1], &CeilingParams::DEFAULT);
         assert!((d - 0.5).abs() < 1e-3, "{d}");
+        // Over a zero floor, no gap is 0 and any gap is infinite.
         let zero = CeilingParams {
             trans_floor_m: 0.0,
-            ..p
+            ..CeilingParams::DEFAULT
         };
         assert_eq!(disagreement([&a0, &a0], [&b0, &b0], &zero), 0.0);
-        assert_eq!(
-            disagreement([&a0, &shift(&a0, 0.001)], [&b0, &b0], &zero),
-            f32::INFINITY
-        );
+        assert_eq!(disagreement([&a0, &a1], [&b0, &b0], &zero), f32::INFINITY);
     }
 
     #[test]

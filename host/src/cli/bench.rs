@@ -713,7 +713,8 @@ touching objects (at most 2 background pixels apart along a row or column) merge
 every static segmentation so far put them in one segment (the segment covering most of \
 each object) and every push so far moved them alike (their true rigid motions agree \
 within 1 mm at either object's centre and 1.5 degrees); merges chain through touching \
-neighbours. RISeg is judged as a share of it.
+neighbours, most alike first, but a group never holds two objects that a push moved \
+differently. RISeg is judged as a share of it.
 
 Columns (percent, averaged over the scenes that reached that push): overlap F, boundary \
 F, and the share of objects found with overlap F > 75 (see `riseg eval --help`). Below \
@@ -721,7 +722,7 @@ the table, per push: RISeg / ceiling, the ratio of their objects-found columns; 
 many of the pushes made at that index moved part of a merged segment: some segment of \
 the static segmentation before the push holds two or more objects (an object belongs to \
 the segment covering most of it) and the push moved one of them (its true motion \
-exceeds 1 mm or 0.5 degree) but not another alike with it. Only such a push gives \
+exceeds 1 mm or 1.5 degrees) but not another alike with it. Only such a push gives \
 motion something to split; moving a merged segment as one piece, or an object the static \
 segmenter already found alone, does not. Then the median milliseconds per step of each \
 stage: segment (static segmentation), flow (one thread), frames, twists, grouping, mask \

@@ -35,12 +35,17 @@
 //!    of `a` and a pixel of `b` are separated by at most [`CeilingParams::touch_gap_px`]
 //!    background pixels (0: 4-adjacent).
 //!
-//! Merged groups are the connected components of the joined pairs (union-find), so three
-//! objects in a row whose neighbours are joined form one group even if the outer two do
-//! not touch. Every object outside a group keeps its own label.
+//! Merged groups grow from the joined pairs, most alike first (the smallest worst
+//! disagreement of the two motions over the pushes so far, as a multiple of the floors;
+//! ties by labels), and a joined pair unites two groups only if every pair of objects
+//! across them meets conditions 1 and 2. So three objects in a row whose neighbours are
+//! joined form one group even if the outer two do not touch, but never when the outer
+//! two moved differently: a group holds no two objects that some push moved differently
+//! (a motion-based method has evidence to split those), and the middle one joins the
+//! neighbour it moved more alike. Every object outside a group keeps its own label.
 //!
-//! Condition 1 is an equivalence (a plurality label is a function of the object), so
-//! only condition 2's floor is not transitive; the union-find closes it.
+//! Condition 1 is an equivalence (a plurality label is a function of the object); only
+//! condition 2's floor is not transitive, which is why a union is checked across groups.
 //!
 //! # Poses
 //!
@@ -140,8 +145,9 @@ pub struct MotionCeiling {
     params: CeilingParams,
     /// Frames seen so far.
     frames: usize,
-    /// Object pairs `(a, b)`, `a < b`, that met conditions 1 and 2 in every frame so far.
-    candidates: BTreeSet<(u16, u16)>,
+    /// Object pairs `(a, b)`, `a < b`, that met conditions 1 and 2 in every frame so far,
+    /// with their worst disagreement over the pushes so far ([`disagreement`]).
+    candidates: BTreeMap<(u16, u16), f32>,
     /// The poses of the previous frame, by label.
     previous: BTreeMap<u16, Pose>,
 }
@@ -153,7 +159,7 @@ impl MotionCeiling {
         Self {
             params,
             frames: 0,
-            candidates: BTreeSet::new(),
+            candidates: BTreeMap::new(),
             previous: BTreeMap::new(),
         }
     }
@@ -190,16 +196,18 @@ impl MotionCeiling {
                 .enumerate()
                 .flat_map(|(i, a)| objects[i + 1..].iter().map(move |b| (*a, *b)))
                 .filter(|(a, b)| merged(a, b))
+                .map(|pair| (pair, 0.0))
                 .collect();
         } else {
             let params = self.params;
             let previous = &self.previous;
             // Both objects of a candidate were visible in the previous frame, and are in
             // this one when `merged` holds, so all four poses exist.
-            self.candidates.retain(|(a, b)| {
+            self.candidates.retain(|(a, b), worst| {
                 merged(a, b)
                     && match (previous.get(a), poses.get(a), previous.get(b), poses.get(b)) {
                         (Some(a0), Some(a1), Some(b0), Some(b1)) => {
+                            *worst = worst.max(disagreement([a0, a1], [b0, b1], &params));
                             same_motion([a0, a1], [b0, b1], &params)
                         }
                         _ => false,
@@ -214,10 +222,7 @@ impl MotionCeiling {
             frame.height,
             self.params.touch_gap_px,
         );
-        Ok(merge_objects(
-            frame.truth,
-            self.candidates.intersection(&touching),
-        ))
+        Ok(merge_objects(frame.truth, &self.candidates, &touching))
     }
 }
 
@@ -260,17 +265,48 @@ pub fn static_segments(truth: &[u16], static_labels: &[u16]) -> BTreeMap<u16, u1
 /// and `b` are each `[pose before, pose after]`, world frame.
 #[must_use]
 pub fn same_motion(a: [&Pose; 2], b: [&Pose; 2], params: &CeilingParams) -> bool {
+    let (angle_rad, apart_m) = motion_gaps(a, b);
+    angle_rad <= params.rot_floor_rad && apart_m <= params.trans_floor_m
+}
+
+/// How far apart two motions are (`a`, `b` as in [`same_motion`]): the rotation between
+/// them, radians, and the larger distance between their images of either object's
+/// centre, metres.
+#[must_use]
+pub fn motion_gaps(a: [&Pose; 2], b: [&Pose; 2]) -> (f32, f32) {
     let motion_a = a[1] * a[0].inverse();
     let motion_b = b[1] * b[0].inverse();
     // 2·atan2(|v|, |w|) of the quaternion between them: unlike nalgebra's acos form, it
     // keeps its precision for the fractions of a degree compared here.
     let between = motion_a.rotation.rotation_to(&motion_b.rotation);
     let angle_rad = 2.0 * libm::atan2f(between.imag().norm(), between.w.abs());
-    angle_rad <= params.rot_floor_rad
-        && [a[0], b[0]].iter().all(|before| {
+    let apart_m = [a[0], b[0]]
+        .iter()
+        .map(|before| {
             let centre = Point3::from(before.translation.vector);
-            (motion_a * centre - motion_b * centre).norm() <= params.trans_floor_m
+            (motion_a * centre - motion_b * centre).norm()
         })
+        .fold(0.0, f32::max);
+    (angle_rad, apart_m)
+}
+
+/// How unalike two motions are (`a`, `b` as in [`same_motion`]), as a multiple of the
+/// floors: the larger of the rotation between them over the rotation floor and their
+/// distance at the centres over the translation floor (a gap over a zero floor is
+/// infinite). Orders the joined pairs of a ceiling (module docs).
+#[must_use]
+pub fn disagreement(a: [&Pose; 2], b: [&Pose; 2], params: &CeilingParams) -> f32 {
+    let (angle_rad, apart_m) = motion_gaps(a, b);
+    let over = |gap: f32, floor: f32| {
+        if floor > 0.0 {
+            gap / floor
+        } else if gap > 0.0 {
+            f32::INFINITY
+        } else {
+            0.0
+        }
+    };
+    over(angle_rad, params.rot_floor_rad).max(over(apart_m, params.trans_floor_m))
 }
 
 /// Whether an object moved between two frames beyond the floors of [`same_motion`]: its
@@ -315,11 +351,44 @@ pub fn touching_pairs(
     pairs
 }
 
-/// `truth` with each connected group of `joined` pairs relabelled to its smallest label.
-fn merge_objects<'p>(truth: &[u16], joined: impl Iterator<Item = &'p (u16, u16)>) -> Vec<u16> {
+/// `truth` with each merged group relabelled to its smallest label: the `candidates`
+/// (pairs meeting conditions 1 and 2, with their worst disagreement) that also touch are
+/// joined most alike first, each only if every pair across the two groups it unites is a
+/// candidate (module docs).
+fn merge_objects(
+    truth: &[u16],
+    candidates: &BTreeMap<(u16, u16), f32>,
+    touching: &BTreeSet<(u16, u16)>,
+) -> Vec<u16> {
+    let mut joined: Vec<((u16, u16), f32)> = candidates
+        .iter()
+        .filter(|(pair, _)| touching.contains(pair))
+        .map(|(&pair, &worst)| (pair, worst))
+        .collect();
+    joined.sort_by(|(p, x), (q, y)| x.total_cmp(y).then(p.cmp(q)));
     let mut parent: Vec<u32> = (0..=u32::from(u16::MAX)).collect();
-    for &(a, b) in joined {
-        union_find_join(&mut parent, u32::from(a), u32::from(b));
+    // The members of each group, by its root.
+    let mut members: BTreeMap<u32, Vec<u16>> = BTreeMap::new();
+    for ((a, b), _) in joined {
+        let (ra, rb) = (
+            union_find_root(&mut parent, u32::from(a)),
+            union_find_root(&mut parent, u32::from(b)),
+        );
+        if ra == rb {
+            continue;
+        }
+        let group = |r: u32, l: u16| members.get(&r).cloned().unwrap_or_else(|| vec![l]);
+        let (ga, gb) = (group(ra, a), group(rb, b));
+        let alike = ga.iter().all(|&x| {
+            gb.iter()
+                .all(|&y| candidates.contains_key(&(x.min(y), x.max(y))))
+        });
+        if alike {
+            union_find_join(&mut parent, ra, rb);
+            members.remove(&ra);
+            members.remove(&rb);
+            members.insert(ra.min(rb), [ga, gb].concat());
+        }
     }
     // Roots are the smallest index of their tree, and every index is a u16 label.
     let mut root = |label: u16| union_find_root(&mut parent, u32::from(label)) as u16;
@@ -457,6 +526,40 @@ mod tests {
         assert_eq!(got[0], [vec![1, 2, 3]]);
         assert_eq!(got[1], [vec![1, 2], vec![3]]);
         assert_eq!(got[2], [vec![1, 2], vec![3]]);
+    }
+
+    #[test]
+    fn a_group_never_holds_two_objects_that_moved_differently() {
+        // Push 1 moves 1 not at all, 2 by 0.7 mm and 3 by 1.6 mm: 1-2 (0.7 mm) and 2-3
+        // (0.9 mm) moved alike within the 1 mm floor, 1-3 (1.6 mm) did not. Chaining the
+        // alike neighbours would merge all three; 2 goes with 1, which it moved more alike.
+        let truth = row_of_three();
+        let p0 = start();
+        let p1 = moved(&moved(&p0, 2, 0.0007), 3, 0.0016);
+        let got = groups(&truth, &vec![all_merged(); 2], &[p0.clone(), p1]);
+        assert_eq!(got[1], [vec![1, 2], vec![3]]);
+        // 2 moved by 0.9 mm: now more alike with 3 (0.7 mm) than with 1 (0.9 mm).
+        let p1 = moved(&moved(&p0, 2, 0.0009), 3, 0.0016);
+        let got = groups(&truth, &vec![all_merged(); 2], &[p0, p1]);
+        assert_eq!(got[1], [vec![1], vec![2, 3]]);
+    }
+
+    #[test]
+    fn disagreement_is_the_larger_gap_over_its_floor() {
+        // Objects 1 and 2 of the fixture, 5 cm apart, shifted by 20.5 and 20 mm: 0.5 mm
+        // apart is half the translation floor.
+        let pose = |label, x_m| at(label, x_m).world_from_object;
+        let (a0, b0) = (pose(1, 0.0), pose(2, 0.05));
+        let (a1, b1) = (pose(1, 0.0205), pose(2, 0.07));
+        let d = disagreement([&a0, &a1], [&b0, &b1], &CeilingParams::DEFAULT);
+        assert!((d - 0.5).abs() < 1e-3, "{d}");
+        // Over a zero floor, no gap is 0 and any gap is infinite.
+        let zero = CeilingParams {
+            trans_floor_m: 0.0,
+            ..CeilingParams::DEFAULT
+        };
+        assert_eq!(disagreement([&a0, &a0], [&b0, &b0], &zero), 0.0);
+        assert_eq!(disagreement([&a0, &a1], [&b0, &b0], &zero), f32::INFINITY);
     }
 
     #[test]

@@ -592,6 +592,24 @@ mod tests {
         }
     }
 
+    /// A refinement input whose first image `i0` has the gradients `zero` (so that only
+    /// the second image's warp and the smoothness term act).
+    fn flat_gradient_input<'a>(
+        (w, h): (usize, usize),
+        i0: &'a [f32],
+        zero: &'a [f32],
+        second: &'a Warpable,
+    ) -> RefineInput<'a> {
+        RefineInput {
+            w,
+            h,
+            i0,
+            gx0: zero,
+            gy0: zero,
+            second,
+        }
+    }
+
     #[test]
     fn edge_aware_weights_keep_a_flow_step_on_an_image_edge() {
         // A vertical image edge (0 | 100 grey) between columns 7 and 8 and a flow step
@@ -604,14 +622,7 @@ mod tests {
         let zero = vec![0.0f32; w * h];
         let pool = Pool::default();
         let second = Warpable::new(&i0, &zero, &zero, (w, h), &pool);
-        let inp = RefineInput {
-            w,
-            h,
-            i0: &i0,
-            gx0: &zero,
-            gy0: &zero,
-            second: &second,
-        };
+        let inp = flat_gradient_input((w, h), &i0, &zero, &second);
         let step = |edge_grey: f32| {
             let mut flow: Vec<[f32; 2]> = (0..w * h)
                 .map(|i| [if i % w < 8 { 0.0 } else { 1.0 }, 0.0])
@@ -640,14 +651,7 @@ mod tests {
         let zero = vec![0.0f32; w * h];
         let pool = Pool::default();
         let second = Warpable::new(&flat, &zero, &zero, (w, h), &pool);
-        let inp = RefineInput {
-            w,
-            h,
-            i0: &flat,
-            gx0: &zero,
-            gy0: &zero,
-            second: &second,
-        };
+        let inp = flat_gradient_input((w, h), &flat, &zero, &second);
         let mut flow = vec![[0.5f32, -1.25]; w * h];
         let s = RefineSettings {
             fixed_point_iters: 2,

@@ -46,7 +46,9 @@ struct Args {
     seed: u64,
     /// riseg presets to run, comma-separated; a `+anchor` suffix (`medium+anchor`) runs the
     /// preset with `coarse_anchor = 4`, `coarsest_propagation = false`, and `+noanchor`
-    /// with `coarse_anchor = 0`, `coarsest_propagation = true`.
+    /// with `coarse_anchor = 0`, `coarsest_propagation = true`; `+edge` turns on the
+    /// edge-aware refinement and robust densification (`smoothness_edge_grey = 12`,
+    /// `densify_outlier_per_grey = 0.5`, `smoothness = 30`).
     #[arg(
         long,
         value_delimiter = ',',
@@ -56,6 +58,10 @@ struct Args {
     /// Print one row per pair as well.
     #[arg(long)]
     per_pair: bool,
+    /// Also write each preset's flow of pair `i` as `pair_i_riseg-PRESET.flo` into the
+    /// folder (for error maps against `pair_i_gt.flo`).
+    #[arg(long)]
+    write_flow: bool,
     /// Which pairs: `textured` (rigid textured objects), `sim` (simulator pushes, loose
     /// layout) or `packed` (simulator pushes, packed layout).
     #[arg(long, default_value = "textured")]
@@ -188,7 +194,14 @@ fn main() -> Result<()> {
                 params.coarse_anchor = 0.0;
                 params.coarsest_propagation = true;
             }
-            other => anyhow::bail!("unknown variant {other:?} in {preset:?} (anchor, noanchor)"),
+            "edge" => {
+                params.smoothness_edge_grey = 12.0;
+                params.densify_outlier_per_grey = 0.5;
+                params.smoothness = 30.0;
+            }
+            other => {
+                anyhow::bail!("unknown variant {other:?} in {preset:?} (anchor, noanchor, edge)")
+            }
         }
         let est = DisFlow::new(params)?.with_threads(1)?;
         let (mut obj, mut all, mut ms) = (0.0, 0.0, 0.0);
@@ -203,6 +216,12 @@ fn main() -> Result<()> {
             }
             times.sort_by(f64::total_cmp);
             let median = times[times.len() / 2];
+            if args.write_flow {
+                write_flo(
+                    &args.dir.join(format!("{}_riseg-{preset}.flo", p.name)),
+                    &flow,
+                )?;
+            }
             let e_obj = flow.mean_epe(&p.truth, Some(&p.moving))?;
             let e_all = flow.mean_epe(&p.truth, None)?;
             if args.per_pair {

@@ -1,7 +1,9 @@
 //! Densification (DIS, section 2.2): each pixel's flow is the weighted mean of the flows of
-//! the patches that cover it, a patch weighing `1 / max(1, |d|)` where `d` is its
+//! the patches that cover it, a patch weighing `1 / max(1, |d| + κ·d²)` where `d` is its
 //! photometric residual at that pixel (`second(x + u) - first(x)`, less the patch's
-//! brightness offset under mean normalisation).
+//! brightness offset under mean normalisation; grey levels) and `κ` (per grey level) is
+//! `FlowParams::densify_outlier_per_grey`. DIS's own weight is `κ = 0`; `κ > 0` lets a
+//! patch that straddles a motion boundary count less on the side it does not match.
 //!
 //! Output rows are independent tasks and each pixel sums its patches in grid order, so the
 //! result does not depend on the thread count.
@@ -16,26 +18,30 @@ const ONE: f32x4 = f32x4::splat(1.0);
 use crate::par::*;
 
 /// Dense `w x h` flow from the patch flows of one level (`patches` row-major over the
-/// grid, which covers every pixel).
+/// grid, which covers every pixel); `outlier_per_grey` is the weight's `κ`.
+#[allow(clippy::too_many_arguments)] // the level's inputs, its pools and one setting
 pub(crate) fn densify(
     t: &Template<'_>,
     i1: &Padded,
     patches: &[PatchFlow],
     grid: &Grid<'_>,
     h: usize,
+    outlier_per_grey: f32,
     pool: &Pool,
     flows: &Pool<[f32; 2]>,
 ) -> Vec<[f32; 2]> {
-    with_patch_size!(grid.size, N => densify_n::<N>(t, i1, patches, grid, h, pool, flows))
+    with_patch_size!(grid.size, N => densify_n::<N>(t, i1, patches, grid, h, outlier_per_grey, pool, flows))
 }
 
 /// [`densify`] for patches of side `N` (`grid.size`).
+#[allow(clippy::too_many_arguments)] // densify's arguments, passed through
 fn densify_n<const N: usize>(
     t: &Template<'_>,
     i1: &Padded,
     patches: &[PatchFlow],
     grid: &Grid<'_>,
     h: usize,
+    outlier_per_grey: f32,
     pool: &Pool,
     flows: &Pool<[f32; 2]>,
 ) -> Vec<[f32; 2]> {
@@ -49,6 +55,7 @@ fn densify_n<const N: usize>(
         .zip(patches)
         .map(|((px, py), p)| i1.tap(px as f32 + p.u, py as f32 + p.v, size))
         .collect();
+    let kappa = f32x4::splat(outlier_per_grey);
     let mut sums = pool.zeroed(3 * w * h);
     sums.par_chunks_mut(3 * w)
         .enumerate()
@@ -83,7 +90,7 @@ fn densify_n<const N: usize>(
                         let at = |s: &[[f32; LANES]]| f32x4::new(s[g]);
                         let s = w00 * at(a0) + w01 * at(a1) + w10 * at(b0) + w11 * at(b1);
                         let d = (s - at(tc) - offset).abs();
-                        let lambda = ONE / d.max(ONE);
+                        let lambda = ONE / (d + kappa * d * d).max(ONE);
                         *cw = (f32x4::new(*cw) + lambda).to_array();
                         *cu = (f32x4::new(*cu) + lambda * u).to_array();
                         *cv = (f32x4::new(*cv) + lambda * v).to_array();

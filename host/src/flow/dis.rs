@@ -84,8 +84,26 @@ pub struct FlowParams {
     pub sor_omega: f32,
     /// Smoothness weight `α` of the refinement.
     pub smoothness: f32,
+    /// Image step between two neighbouring pixels, grey levels (0-255), that halves the
+    /// refinement's smoothness weight between them: the weight is multiplied by `1 / (1 +
+    /// (ΔI / smoothness_edge_grey)²)`, `ΔI` the first image's difference across the pair.
+    /// Motion boundaries lie on image edges (object outlines, the seams between packed
+    /// boxes); across them the flow of one side otherwise diffuses into the other. 0 =
+    /// uniform weight (DIS), the value of every preset: with 12 (and
+    /// `densify_outlier_per_grey` 0.5, `smoothness` 30; `flow_pairs` variant `+edge`)
+    /// MEDIUM's EPE on moving-object pixels of `bench/flow.sh`'s pairs falls on every set
+    /// (packed seed 1: 0.94 to 0.81 px, seed 101: 1.32 to 1.23) at about the same time,
+    /// but `riseg bench --layout loose` loses boundary F (1-4 points) and objects found
+    /// (issue 17).
+    pub smoothness_edge_grey: f32,
     /// Brightness-constancy weight `δ` of the refinement.
     pub data_weight: f32,
+    /// Quadratic term `κ` of densification's patch weight `1 / max(1, |d| + κ·d²)`, per
+    /// grey level: `d` is the patch's photometric residual at the pixel, grey levels
+    /// (0-255). 0 is DIS's weight; larger values let a patch that straddles a motion
+    /// boundary, and does not match on one side of it, count less there. 0 in every
+    /// preset (see `smoothness_edge_grey`).
+    pub densify_outlier_per_grey: f32,
     /// Gauss-Newton iterations of the full-resolution polish: when `finest_level > 0`,
     /// the upsampled flow goes through one more inverse search (without propagation),
     /// densification and refinement at full resolution. 0 (with
@@ -127,7 +145,9 @@ impl FlowParams {
         sor_iters: 4,
         sor_omega: 1.8,
         smoothness: 20.0,
+        smoothness_edge_grey: 0.0,
         data_weight: 5.0,
+        densify_outlier_per_grey: 0.0,
         polish_gd_iters: 0,
         polish_variational_iters: 0,
         coarse_anchor: 0.0,
@@ -211,6 +231,11 @@ impl FlowParams {
         if !(ok(self.smoothness) && ok(self.data_weight)) {
             return Err(FlowError::InvalidParams(
                 "smoothness and data_weight must be finite and >= 0",
+            ));
+        }
+        if !(ok(self.smoothness_edge_grey) && ok(self.densify_outlier_per_grey)) {
+            return Err(FlowError::InvalidParams(
+                "smoothness_edge_grey and densify_outlier_per_grey must be finite and >= 0",
             ));
         }
         if !ok(self.coarse_anchor) {
@@ -474,7 +499,16 @@ impl DisFlow {
             ys: &ys,
             size: p,
         };
-        let dense = densify(&t, &i1p, &patches, &grid, h, pool, &self.flows);
+        let dense = densify(
+            &t,
+            &i1p,
+            &patches,
+            &grid,
+            h,
+            prm.densify_outlier_per_grey,
+            pool,
+            &self.flows,
+        );
         self.flows.put(core::mem::replace(flow, dense));
         if step.variational_iters > 0 {
             let (gx1, gy1) = gradients(i1, w, h, pool);
@@ -495,6 +529,7 @@ impl DisFlow {
                 sor_omega: prm.sor_omega,
                 alpha: prm.smoothness,
                 delta: prm.data_weight,
+                edge_grey: prm.smoothness_edge_grey,
             };
             refine(&inp, flow, &settings, pool);
             second.recycle(pool);
@@ -894,6 +929,14 @@ mod tests {
             },
             FlowParams {
                 coarse_anchor: -1.0,
+                ..FlowParams::MEDIUM
+            },
+            FlowParams {
+                smoothness_edge_grey: f32::INFINITY,
+                ..FlowParams::MEDIUM
+            },
+            FlowParams {
+                densify_outlier_per_grey: -0.5,
                 ..FlowParams::MEDIUM
             },
         ];

@@ -22,6 +22,8 @@
 //!   axes (DESIGN.md §3): rotation noise times a 60 cm lever arm to the camera would swamp
 //!   the linear part of the twist.
 
+use core::hint::select_unpredictable;
+
 use nalgebra::{Point3, Vector3};
 
 use crate::{
@@ -543,7 +545,10 @@ fn best_triangle_listed(
     let (min_side, max_side) = (cfg.frame_min_side_m, cfg.frame_max_side_m);
     let mut dist = [0.0 as Real; WINDOW_ON_STACK];
     let mut near = 0;
-    let mut best_j: Option<(usize, Real)> = None;
+    // The farthest so far as (place in `listed`, distance); a kept distance is never
+    // `-∞`, so the first kept one always replaces the start. Selects, not branches: the
+    // tests wait on a square root, so a mispredicted branch would cost its latency too.
+    let mut best_j = (usize::MAX, Real::NEG_INFINITY);
     for at in 0..listed.len() {
         let Some(&k) = listed.get(at) else { break };
         let Some(s) = window.get(usize::from(k)) else {
@@ -553,47 +558,46 @@ fn best_triangle_listed(
             continue;
         }
         let d = (s.p_t - o.p_t).norm();
-        let keep = d >= min_side && d <= max_side;
+        let keep = (d >= min_side) & (d <= max_side);
         if let (Some(slot), Some(slot_d)) = (listed.get_mut(near), dist.get_mut(near)) {
             *slot = k;
             *slot_d = d;
         }
-        if keep && best_j.is_none_or(|(_, bd)| d > bd) {
-            best_j = Some((near, d));
-        }
+        best_j = select_unpredictable(keep & (d > best_j.1), (near, d), best_j);
         near += usize::from(keep);
     }
-    let (j_at, dj) = best_j?;
+    let (j_at, dj) = best_j;
     let j = window.get(usize::from(*listed.get(j_at)?))?;
     let a = j.p_t - o.p_t;
-    let mut best_k: Option<(&FrameSample, Real)> = None;
+    // The largest so far as (sample, doubled area); the start `-∞` prunes nothing, and a
+    // passing area is never `-∞`. Selects, not branches, as for the second point.
+    let mut best_k = (o, Real::NEG_INFINITY);
     for (&k, &db) in listed.iter().zip(dist.iter()).take(near) {
         // `|a × b| <= |a|·|b|`: a candidate whose bound is below the best area so far
         // cannot win (ties keep the earlier one), so it is skipped before any arithmetic.
         // The slack covers the rounding of both sides (a few units in the last place),
         // which holds while the squares inside the norms are normal numbers.
         let bound = dj * db;
-        if best_k.is_some_and(|(_, ba)| bound * AREA_BOUND_SLACK < ba) && prunable(dj, db) {
+        if bound * AREA_BOUND_SLACK < best_k.1 && prunable(dj, db) {
             continue;
         }
         let Some(s) = window.get(usize::from(k)) else {
             continue;
         };
-        if s.px == j.px {
-            continue;
-        }
         let djk = (s.p_t - j.p_t).norm();
-        if djk < min_side || djk > max_side {
-            continue;
-        }
         let b = s.p_t - o.p_t;
         let area = a.cross(&b).norm();
-        if area >= cfg.frame_min_sin * dj * db && best_k.is_none_or(|(_, ba)| area > ba) {
-            best_k = Some((s, area));
-        }
+        let larger = (s.px != j.px)
+            & (djk >= min_side)
+            & (djk <= max_side)
+            & (area >= cfg.frame_min_sin * dj * db)
+            & (area > best_k.1);
+        best_k = select_unpredictable(larger, (s, area), best_k);
     }
-    let (kk, _) = best_k?;
-    rigid_frame(o, j, kk, cfg)
+    if best_k.1 == Real::NEG_INFINITY {
+        return None;
+    }
+    rigid_frame(o, j, best_k.0, cfg)
 }
 
 /// The frame on origin `o` and the best two of `candidates` (samples of its segment near

@@ -601,7 +601,8 @@ fn best_triangle_listed(
 }
 
 /// The frame on origin `o` and the best two of `candidates` (samples of its segment near
-/// it), or `None` if no good triangle exists.
+/// it), or `None` if no good triangle exists. Picks by selects from a `-∞` start, as
+/// [`best_triangle_listed`] does.
 fn best_triangle<'s>(
     o: &'s FrameSample,
     candidates: impl Iterator<Item = &'s FrameSample> + Clone,
@@ -609,30 +610,35 @@ fn best_triangle<'s>(
 ) -> Option<BodyFrame> {
     let max_side = cfg.frame_max_side_m;
     let min_side = cfg.frame_min_side_m;
-    let mut best_j: Option<(&FrameSample, Real)> = None;
+    let mut best_j = (o, Real::NEG_INFINITY);
     for s in candidates.clone() {
         let d = (s.p_t - o.p_t).norm();
-        if d >= min_side && d <= max_side && best_j.is_none_or(|(_, bd)| d > bd) {
-            best_j = Some((s, d));
-        }
+        let farther = (d >= min_side) & (d <= max_side) & (d > best_j.1);
+        best_j = select_unpredictable(farther, (s, d), best_j);
     }
-    let (j, dj) = best_j?;
+    let (j, dj) = best_j;
+    if dj == Real::NEG_INFINITY {
+        return None;
+    }
     let a = j.p_t - o.p_t;
-    let mut best_k: Option<(&FrameSample, Real)> = None;
+    let mut best_k = (o, Real::NEG_INFINITY);
     for s in candidates.filter(|s| s.px != j.px) {
         let b = s.p_t - o.p_t;
         let db = b.norm();
         let djk = (s.p_t - j.p_t).norm();
-        if db < min_side || db > max_side || djk < min_side || djk > max_side {
-            continue;
-        }
         let area = a.cross(&b).norm();
-        if area >= cfg.frame_min_sin * dj * db && best_k.is_none_or(|(_, ba)| area > ba) {
-            best_k = Some((s, area));
-        }
+        let larger = (db >= min_side)
+            & (db <= max_side)
+            & (djk >= min_side)
+            & (djk <= max_side)
+            & (area >= cfg.frame_min_sin * dj * db)
+            & (area > best_k.1);
+        best_k = select_unpredictable(larger, (s, area), best_k);
     }
-    let (kk, _) = best_k?;
-    rigid_frame(o, j, kk, cfg)
+    if best_k.1 == Real::NEG_INFINITY {
+        return None;
+    }
+    rigid_frame(o, j, best_k.0, cfg)
 }
 
 /// The frame on `o`, `j`, `kk` if no side changes length by [`Config::frame_rigid_tol_m`]
@@ -823,8 +829,44 @@ mod tests {
         );
     }
 
+    /// The frame on origin `o` and the best two of `candidates` (samples of its segment near
+    /// it), or `None` if no good triangle exists: the plain scan, branch by branch, that
+    /// [`build_frame`]'s passes must agree with.
+    fn plain_triangle<'s>(
+        o: &'s FrameSample,
+        candidates: impl Iterator<Item = &'s FrameSample> + Clone,
+        cfg: &Config,
+    ) -> Option<BodyFrame> {
+        let max_side = cfg.frame_max_side_m;
+        let min_side = cfg.frame_min_side_m;
+        let mut best_j: Option<(&FrameSample, Real)> = None;
+        for s in candidates.clone() {
+            let d = (s.p_t - o.p_t).norm();
+            if d >= min_side && d <= max_side && best_j.is_none_or(|(_, bd)| d > bd) {
+                best_j = Some((s, d));
+            }
+        }
+        let (j, dj) = best_j?;
+        let a = j.p_t - o.p_t;
+        let mut best_k: Option<(&FrameSample, Real)> = None;
+        for s in candidates.filter(|s| s.px != j.px) {
+            let b = s.p_t - o.p_t;
+            let db = b.norm();
+            let djk = (s.p_t - j.p_t).norm();
+            if db < min_side || db > max_side || djk < min_side || djk > max_side {
+                continue;
+            }
+            let area = a.cross(&b).norm();
+            if area >= cfg.frame_min_sin * dj * db && best_k.is_none_or(|(_, ba)| area > ba) {
+                best_k = Some((s, area));
+            }
+        }
+        let (kk, _) = best_k?;
+        rigid_frame(o, j, kk, cfg)
+    }
+
     /// [`build_frame`] as it was before the listed fast path: every sample of the row
-    /// window that passes the candidate test, straight into [`best_triangle`].
+    /// window that passes the candidate test, straight into [`plain_triangle`].
     fn build_frame_plain(
         input: &MotionInput<'_>,
         cfg: &Config,
@@ -850,7 +892,7 @@ mod tests {
                 && s.label() == o.label()
                 && s.px != o.px
         };
-        best_triangle(o, samples[first..last].iter().filter(candidate), cfg)
+        plain_triangle(o, samples[first..last].iter().filter(candidate), cfg)
     }
 
     proptest::proptest! {
@@ -876,9 +918,10 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// The listed fast path of [`build_frame`] (and its fallback past
-        /// [`WINDOW_ON_STACK`]) picks the frame the plain scan picks, bit for bit. Points
-        /// sit on a coarse lattice so that equal distances and areas (ties) are common.
+        /// The listed fast path of [`build_frame`] (and, at the long focal length, its
+        /// fallback past [`WINDOW_ON_STACK`]) picks the frame the plain scan picks, bit for
+        /// bit. Points sit on a coarse lattice so that equal distances and areas (ties)
+        /// are common.
         #[test]
         fn build_frame_picks_what_the_plain_scan_picks(
             cells in proptest::collection::vec(
@@ -886,6 +929,7 @@ mod tests {
                 3..700,
             ),
             step_m in proptest::sample::select(vec![0.002f32, 0.004, 0.01]),
+            focal_px in proptest::sample::select(vec![100.0f32, 2000.0]),
         ) {
             let mut cells = cells;
             cells.sort_by_key(|c| (c.1, c.0));
@@ -914,7 +958,7 @@ mod tests {
                 ImageView::packed(1, 1, &depth).unwrap(),
                 ImageView::packed(1, 1, &depth).unwrap(),
                 ImageView::packed(1, 1, &flow).unwrap(),
-                Intrinsics::new(100.0, 100.0, 0.5, 0.5).unwrap(),
+                Intrinsics::new(focal_px, focal_px, 0.5, 0.5).unwrap(),
             )
             .unwrap();
             let cfg = Config::PAPER;

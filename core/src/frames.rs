@@ -568,7 +568,6 @@ fn best_triangle_listed(
     }
     let (j_at, dj) = best_j;
     let j = window.get(usize::from(*listed.get(j_at)?))?;
-    let a = j.p_t - o.p_t;
     // The largest so far as (sample, doubled area); the start `-∞` prunes nothing, and a
     // passing area is never `-∞`. Selects, not branches, as for the second point.
     let mut best_k = (o, Real::NEG_INFINITY);
@@ -584,20 +583,9 @@ fn best_triangle_listed(
         let Some(s) = window.get(usize::from(k)) else {
             continue;
         };
-        let djk = (s.p_t - j.p_t).norm();
-        let b = s.p_t - o.p_t;
-        let area = a.cross(&b).norm();
-        let larger = (s.px != j.px)
-            & (djk >= min_side)
-            & (djk <= max_side)
-            & (area >= cfg.frame_min_sin * dj * db)
-            & (area > best_k.1);
-        best_k = select_unpredictable(larger, (s, area), best_k);
+        best_k = third_point(o, (j, dj), (s, db), best_k, cfg);
     }
-    if best_k.1 == Real::NEG_INFINITY {
-        return None;
-    }
-    rigid_frame(o, j, best_k.0, cfg)
+    triangle_frame(o, j, best_k, cfg)
 }
 
 /// The frame on origin `o` and the best two of `candidates` (samples of its segment near
@@ -620,25 +608,53 @@ fn best_triangle<'s>(
     if dj == Real::NEG_INFINITY {
         return None;
     }
-    let a = j.p_t - o.p_t;
     let mut best_k = (o, Real::NEG_INFINITY);
-    for s in candidates.filter(|s| s.px != j.px) {
-        let b = s.p_t - o.p_t;
-        let db = b.norm();
-        let djk = (s.p_t - j.p_t).norm();
-        let area = a.cross(&b).norm();
-        let larger = (db >= min_side)
-            & (db <= max_side)
-            & (djk >= min_side)
-            & (djk <= max_side)
-            & (area >= cfg.frame_min_sin * dj * db)
-            & (area > best_k.1);
-        best_k = select_unpredictable(larger, (s, area), best_k);
+    for s in candidates {
+        let db = (s.p_t - o.p_t).norm();
+        best_k = third_point(o, (j, dj), (s, db), best_k, cfg);
     }
-    if best_k.1 == Real::NEG_INFINITY {
+    triangle_frame(o, j, best_k, cfg)
+}
+
+/// The third point's pick after candidate `s` at distance `db` from `o`, for the second
+/// point `j` at distance `dj`: `s` replaces `best_k` (sample, doubled area; `-∞` before
+/// any) when it is not `j`, its sides are within the limits, the sine at `o` is at least
+/// [`Config::frame_min_sin`] and its triangle is larger (ties keep the earlier one). A
+/// select, not a branch: the tests wait on square roots, so a mispredicted branch would
+/// cost their latency on top of the refill.
+#[inline]
+fn third_point<'s>(
+    o: &FrameSample,
+    (j, dj): (&FrameSample, Real),
+    (s, db): (&'s FrameSample, Real),
+    best_k: (&'s FrameSample, Real),
+    cfg: &Config,
+) -> (&'s FrameSample, Real) {
+    let (min_side, max_side) = (cfg.frame_min_side_m, cfg.frame_max_side_m);
+    let djk = (s.p_t - j.p_t).norm();
+    let area = (j.p_t - o.p_t).cross(&(s.p_t - o.p_t)).norm();
+    let larger = (s.px != j.px)
+        & (db >= min_side)
+        & (db <= max_side)
+        & (djk >= min_side)
+        & (djk <= max_side)
+        & (area >= cfg.frame_min_sin * dj * db)
+        & (area > best_k.1);
+    select_unpredictable(larger, (s, area), best_k)
+}
+
+/// The frame on `o`, `j` and the third point's pick `best_k` ([`third_point`]), `None`
+/// if there is none ([`rigid_frame`] otherwise).
+fn triangle_frame(
+    o: &FrameSample,
+    j: &FrameSample,
+    (kk, area): (&FrameSample, Real),
+    cfg: &Config,
+) -> Option<BodyFrame> {
+    if area == Real::NEG_INFINITY {
         return None;
     }
-    rigid_frame(o, j, best_k.0, cfg)
+    rigid_frame(o, j, kk, cfg)
 }
 
 /// The frame on `o`, `j`, `kk` if no side changes length by [`Config::frame_rigid_tol_m`]

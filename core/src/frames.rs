@@ -22,6 +22,8 @@
 //!   axes (DESIGN.md §3): rotation noise times a 60 cm lever arm to the camera would swamp
 //!   the linear part of the twist.
 
+use core::hint::select_unpredictable;
+
 use nalgebra::{Point3, Vector3};
 
 use crate::{
@@ -543,7 +545,10 @@ fn best_triangle_listed(
     let (min_side, max_side) = (cfg.frame_min_side_m, cfg.frame_max_side_m);
     let mut dist = [0.0 as Real; WINDOW_ON_STACK];
     let mut near = 0;
-    let mut best_j: Option<(usize, Real)> = None;
+    // The farthest so far as (place in `listed`, distance); a kept distance is never
+    // `-∞`, so the first kept one always replaces the start. Selects, not branches: the
+    // tests wait on a square root, so a mispredicted branch would cost its latency too.
+    let mut best_j = (usize::MAX, Real::NEG_INFINITY);
     for at in 0..listed.len() {
         let Some(&k) = listed.get(at) else { break };
         let Some(s) = window.get(usize::from(k)) else {
@@ -553,51 +558,39 @@ fn best_triangle_listed(
             continue;
         }
         let d = (s.p_t - o.p_t).norm();
-        let keep = d >= min_side && d <= max_side;
+        let keep = (d >= min_side) & (d <= max_side);
         if let (Some(slot), Some(slot_d)) = (listed.get_mut(near), dist.get_mut(near)) {
             *slot = k;
             *slot_d = d;
         }
-        if keep && best_j.is_none_or(|(_, bd)| d > bd) {
-            best_j = Some((near, d));
-        }
+        best_j = select_unpredictable(keep & (d > best_j.1), (near, d), best_j);
         near += usize::from(keep);
     }
-    let (j_at, dj) = best_j?;
+    let (j_at, dj) = best_j;
     let j = window.get(usize::from(*listed.get(j_at)?))?;
-    let a = j.p_t - o.p_t;
-    let mut best_k: Option<(&FrameSample, Real)> = None;
+    // The largest so far as (sample, doubled area); the start `-∞` prunes nothing, and a
+    // passing area is never `-∞`. Selects, not branches, as for the second point.
+    let mut best_k = (o, Real::NEG_INFINITY);
     for (&k, &db) in listed.iter().zip(dist.iter()).take(near) {
         // `|a × b| <= |a|·|b|`: a candidate whose bound is below the best area so far
         // cannot win (ties keep the earlier one), so it is skipped before any arithmetic.
         // The slack covers the rounding of both sides (a few units in the last place),
         // which holds while the squares inside the norms are normal numbers.
         let bound = dj * db;
-        if best_k.is_some_and(|(_, ba)| bound * AREA_BOUND_SLACK < ba) && prunable(dj, db) {
+        if bound * AREA_BOUND_SLACK < best_k.1 && prunable(dj, db) {
             continue;
         }
         let Some(s) = window.get(usize::from(k)) else {
             continue;
         };
-        if s.px == j.px {
-            continue;
-        }
-        let djk = (s.p_t - j.p_t).norm();
-        if djk < min_side || djk > max_side {
-            continue;
-        }
-        let b = s.p_t - o.p_t;
-        let area = a.cross(&b).norm();
-        if area >= cfg.frame_min_sin * dj * db && best_k.is_none_or(|(_, ba)| area > ba) {
-            best_k = Some((s, area));
-        }
+        best_k = third_point(o, (j, dj), (s, db), best_k, cfg);
     }
-    let (kk, _) = best_k?;
-    rigid_frame(o, j, kk, cfg)
+    triangle_frame(o, j, best_k, cfg)
 }
 
 /// The frame on origin `o` and the best two of `candidates` (samples of its segment near
-/// it), or `None` if no good triangle exists.
+/// it), or `None` if no good triangle exists. Picks by selects from a `-∞` start, as
+/// [`best_triangle_listed`] does.
 fn best_triangle<'s>(
     o: &'s FrameSample,
     candidates: impl Iterator<Item = &'s FrameSample> + Clone,
@@ -605,29 +598,62 @@ fn best_triangle<'s>(
 ) -> Option<BodyFrame> {
     let max_side = cfg.frame_max_side_m;
     let min_side = cfg.frame_min_side_m;
-    let mut best_j: Option<(&FrameSample, Real)> = None;
+    let mut best_j = (o, Real::NEG_INFINITY);
     for s in candidates.clone() {
         let d = (s.p_t - o.p_t).norm();
-        if d >= min_side && d <= max_side && best_j.is_none_or(|(_, bd)| d > bd) {
-            best_j = Some((s, d));
-        }
+        let farther = (d >= min_side) & (d <= max_side) & (d > best_j.1);
+        best_j = select_unpredictable(farther, (s, d), best_j);
     }
-    let (j, dj) = best_j?;
-    let a = j.p_t - o.p_t;
-    let mut best_k: Option<(&FrameSample, Real)> = None;
-    for s in candidates.filter(|s| s.px != j.px) {
-        let b = s.p_t - o.p_t;
-        let db = b.norm();
-        let djk = (s.p_t - j.p_t).norm();
-        if db < min_side || db > max_side || djk < min_side || djk > max_side {
-            continue;
-        }
-        let area = a.cross(&b).norm();
-        if area >= cfg.frame_min_sin * dj * db && best_k.is_none_or(|(_, ba)| area > ba) {
-            best_k = Some((s, area));
-        }
+    let (j, dj) = best_j;
+    if dj == Real::NEG_INFINITY {
+        return None;
     }
-    let (kk, _) = best_k?;
+    let mut best_k = (o, Real::NEG_INFINITY);
+    for s in candidates {
+        let db = (s.p_t - o.p_t).norm();
+        best_k = third_point(o, (j, dj), (s, db), best_k, cfg);
+    }
+    triangle_frame(o, j, best_k, cfg)
+}
+
+/// The third point's pick after candidate `s` at distance `db` from `o`, for the second
+/// point `j` at distance `dj`: `s` replaces `best_k` (sample, doubled area; `-∞` before
+/// any) when it is not `j`, its sides are within the limits, the sine at `o` is at least
+/// [`Config::frame_min_sin`] and its triangle is larger (ties keep the earlier one). A
+/// select, not a branch: the tests wait on square roots, so a mispredicted branch would
+/// cost their latency on top of the refill.
+#[inline]
+fn third_point<'s>(
+    o: &FrameSample,
+    (j, dj): (&FrameSample, Real),
+    (s, db): (&'s FrameSample, Real),
+    best_k: (&'s FrameSample, Real),
+    cfg: &Config,
+) -> (&'s FrameSample, Real) {
+    let (min_side, max_side) = (cfg.frame_min_side_m, cfg.frame_max_side_m);
+    let djk = (s.p_t - j.p_t).norm();
+    let area = (j.p_t - o.p_t).cross(&(s.p_t - o.p_t)).norm();
+    let larger = (s.px != j.px)
+        & (db >= min_side)
+        & (db <= max_side)
+        & (djk >= min_side)
+        & (djk <= max_side)
+        & (area >= cfg.frame_min_sin * dj * db)
+        & (area > best_k.1);
+    select_unpredictable(larger, (s, area), best_k)
+}
+
+/// The frame on `o`, `j` and the third point's pick `best_k` ([`third_point`]), `None`
+/// if there is none ([`rigid_frame`] otherwise).
+fn triangle_frame(
+    o: &FrameSample,
+    j: &FrameSample,
+    (kk, area): (&FrameSample, Real),
+    cfg: &Config,
+) -> Option<BodyFrame> {
+    if area == Real::NEG_INFINITY {
+        return None;
+    }
     rigid_frame(o, j, kk, cfg)
 }
 
@@ -819,8 +845,44 @@ mod tests {
         );
     }
 
+    /// The frame on origin `o` and the best two of `candidates` (samples of its segment near
+    /// it), or `None` if no good triangle exists: the plain scan, branch by branch, that
+    /// [`build_frame`]'s passes must agree with.
+    fn plain_triangle<'s>(
+        o: &'s FrameSample,
+        candidates: impl Iterator<Item = &'s FrameSample> + Clone,
+        cfg: &Config,
+    ) -> Option<BodyFrame> {
+        let max_side = cfg.frame_max_side_m;
+        let min_side = cfg.frame_min_side_m;
+        let mut best_j: Option<(&FrameSample, Real)> = None;
+        for s in candidates.clone() {
+            let d = (s.p_t - o.p_t).norm();
+            if d >= min_side && d <= max_side && best_j.is_none_or(|(_, bd)| d > bd) {
+                best_j = Some((s, d));
+            }
+        }
+        let (j, dj) = best_j?;
+        let a = j.p_t - o.p_t;
+        let mut best_k: Option<(&FrameSample, Real)> = None;
+        for s in candidates.filter(|s| s.px != j.px) {
+            let b = s.p_t - o.p_t;
+            let db = b.norm();
+            let djk = (s.p_t - j.p_t).norm();
+            if db < min_side || db > max_side || djk < min_side || djk > max_side {
+                continue;
+            }
+            let area = a.cross(&b).norm();
+            if area >= cfg.frame_min_sin * dj * db && best_k.is_none_or(|(_, ba)| area > ba) {
+                best_k = Some((s, area));
+            }
+        }
+        let (kk, _) = best_k?;
+        rigid_frame(o, j, kk, cfg)
+    }
+
     /// [`build_frame`] as it was before the listed fast path: every sample of the row
-    /// window that passes the candidate test, straight into [`best_triangle`].
+    /// window that passes the candidate test, straight into [`plain_triangle`].
     fn build_frame_plain(
         input: &MotionInput<'_>,
         cfg: &Config,
@@ -846,7 +908,7 @@ mod tests {
                 && s.label() == o.label()
                 && s.px != o.px
         };
-        best_triangle(o, samples[first..last].iter().filter(candidate), cfg)
+        plain_triangle(o, samples[first..last].iter().filter(candidate), cfg)
     }
 
     proptest::proptest! {
@@ -872,9 +934,10 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// The listed fast path of [`build_frame`] (and its fallback past
-        /// [`WINDOW_ON_STACK`]) picks the frame the plain scan picks, bit for bit. Points
-        /// sit on a coarse lattice so that equal distances and areas (ties) are common.
+        /// The listed fast path of [`build_frame`] (and, at the long focal length, its
+        /// fallback past [`WINDOW_ON_STACK`]) picks the frame the plain scan picks, bit for
+        /// bit. Points sit on a coarse lattice so that equal distances and areas (ties)
+        /// are common.
         #[test]
         fn build_frame_picks_what_the_plain_scan_picks(
             cells in proptest::collection::vec(
@@ -882,6 +945,7 @@ mod tests {
                 3..700,
             ),
             step_m in proptest::sample::select(vec![0.002f32, 0.004, 0.01]),
+            focal_px in proptest::sample::select(vec![100.0f32, 2000.0]),
         ) {
             let mut cells = cells;
             cells.sort_by_key(|c| (c.1, c.0));
@@ -910,7 +974,7 @@ mod tests {
                 ImageView::packed(1, 1, &depth).unwrap(),
                 ImageView::packed(1, 1, &depth).unwrap(),
                 ImageView::packed(1, 1, &flow).unwrap(),
-                Intrinsics::new(100.0, 100.0, 0.5, 0.5).unwrap(),
+                Intrinsics::new(focal_px, focal_px, 0.5, 0.5).unwrap(),
             )
             .unwrap();
             let cfg = Config::PAPER;

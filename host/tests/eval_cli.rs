@@ -426,7 +426,7 @@ fn with_poses_eval_scores_the_motion_ceiling_beside_the_pushes() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("motion ceiling"), "{stdout}");
     assert!(
-        stdout.contains("prediction / ceiling, objects F>75 at push 1: 1.00"),
+        stdout.contains("prediction / ceiling, objects F>75 at push 1: 1.000"),
         "{stdout}"
     );
 

@@ -407,7 +407,7 @@ fn write_table(f: &mut fmt::Formatter<'_>, rows: &[PushReport]) -> fmt::Result {
 }
 
 /// One line per push index present in both `rows` and `ceiling`: `"<name> / ceiling,
-/// objects F>75 at push t: x.xx"`, the ratio of the two rows' objects-found percentages
+/// objects F>75 at push t: x.xxx"`, the ratio of the two rows' objects-found percentages
 /// (`n/a` when the ceiling finds none).
 ///
 /// # Errors
@@ -424,7 +424,8 @@ pub fn write_ceiling_shares(
         };
         write!(f, "{name} / ceiling, objects F>75 at push {}: ", row.push)?;
         if top.objects_f75_pct > 0.0 {
-            writeln!(f, "{:.2}", row.objects_f75_pct / top.objects_f75_pct)?;
+            // Three decimals: a share of 0.895 must not read as the 0.90 it is judged by.
+            writeln!(f, "{:.3}", row.objects_f75_pct / top.objects_f75_pct)?;
         } else {
             writeln!(f, "n/a (the ceiling finds no object)")?;
         }

@@ -41,15 +41,7 @@
 //!      `L²/12` along it). A region with `L₁ <=` [`Config::region_max_len_m`] (or whose
 //!      covariance is not finite, or whose eigen-solve does not converge) is one
 //!      cluster: pixel centre the mean of its samples' pixels, 3-D centre the mean of
-//!      their points; except (beyond the paper) two look-alike objects side by side whose
-//!      cut the heatmap missed: a region that is two copies of another candidate (one
-//!      object by its length, lengths `x`, `y`, whose pixel centre has a label of the
-//!      mask other than `0` and than the region's: an object the mask already holds
-//!      apart) is split into `2 × 1` pieces as below: when `L₁` is within 20 % of `2x` and `L₂` of `y` (or `2y` and `x`), its
-//!      area within 25 % of twice the other's, and the other's 3-D centre within
-//!      10 mm of its plane (the principal plane of its samples' points: one height,
-//!      as the boxes of a pack). A lone region, or one among objects of other sizes or
-//!      heights, stays one;
+//!      their points;
 //!    - a longer region is more than one object and is split into `n₁ × n₂` pieces,
 //!      `n₁ = round(L₁ / region_cell_m)` clamped to `2..=5` and `n₂ = round(L₂ /
 //!      region_cell_m)` clamped to `1..=2` and to at most `6 / n₁` (a 2 × 3 pack is
@@ -496,7 +488,6 @@ pub fn find_action(
         row_runs,
         &certain_samples,
         nearest,
-        mask,
         intrinsics,
         cfg,
     );

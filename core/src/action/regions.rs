@@ -18,15 +18,6 @@ const MAX_PIECES: usize = 6;
 const MAX_PIECES_LONG: usize = 5;
 /// Most pieces along a region's short axis.
 const MAX_PIECES_SHORT: usize = 2;
-/// A region at most [`Config::region_max_len_m`] long is two look-alike objects side by
-/// side when another region is one of them: its long side is `2 x` and its short side `y`
-/// for the other's sides `x`, `y` (either way round), each within this fraction, ...
-const TWIN_LEN_TOL: Real = 0.2;
-/// ... and its area is within this fraction of twice the other's, ...
-const TWIN_AREA_TOL: Real = 0.25;
-/// ... and the other's centre is at most this far off its plane, metres: one height (module
-/// docs, step 4).
-const TWIN_HEIGHT_TOL_M: Real = 0.010;
 /// Most iterations of the eigen-solver for a region's 3-D covariance.
 const EIGEN_ITERS: usize = 64;
 
@@ -235,10 +226,9 @@ impl RegionSums {
     }
 
     /// Lengths `L = √(12 λ)` along the two longest principal axes of the sampled 3-D
-    /// points (a uniform rectangle of side `L` has variance `L²/12` along it) and the unit
-    /// normal of their plane (the principal axis of the smallest variance); `None` when
+    /// points (a uniform rectangle of side `L` has variance `L²/12` along it); `None` when
     /// the covariance is not finite or the solver does not converge.
-    fn metric_frame(&self) -> Option<(Real, Real, Vector3<Real>)> {
+    fn metric_lengths(&self) -> Option<(Real, Real)> {
         let inv = 1.0 / self.samples.max(1) as Real;
         let m = self.s_p * inv;
         let cov = self.s_pp * inv - m * m.transpose();
@@ -246,16 +236,10 @@ impl RegionSums {
             return None;
         }
         let eig = SymmetricEigen::try_new(cov, Real::EPSILON, EIGEN_ITERS)?;
-        let vectors = &eig.eigenvectors;
-        let mut axes = [
-            (eig.eigenvalues.x, vectors.column(0).into_owned()),
-            (eig.eigenvalues.y, vectors.column(1).into_owned()),
-            (eig.eigenvalues.z, vectors.column(2).into_owned()),
-        ];
-        axes.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
-        let [(v1, _), (v2, _), (_, normal)] = axes;
-        let len = |v: Real| sqrt(12.0 * v.max(0.0));
-        Some((len(v1), len(v2), normal))
+        let mut ev = [eig.eigenvalues.x, eig.eigenvalues.y, eig.eigenvalues.z];
+        ev.sort_unstable_by(|a, b| b.total_cmp(a));
+        let [l1, l2, _] = ev.map(|v| sqrt(12.0 * v.max(0.0)));
+        Some((l1, l2))
     }
 
     /// Principal axes of the sampled pixels: unit long axis and the lengths
@@ -295,14 +279,12 @@ pub(super) struct CertainClusters {
 /// Certain clusters from the labelled runs and the certain samples (module docs,
 /// steps 3-4). Leaves each run's candidate region (or [`NONE`]) in `runs.aux` and each
 /// run's root in `runs.parent`; uses `nearest` for the samples' regions.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn certain_clusters(
     runs: &mut RunPlanes<'_>,
     n_runs: usize,
     row_runs: &[u32],
     s: &Samples<'_>,
     nearest: &mut [u32],
-    mask: &ImageView<'_, u16>,
     intrinsics: &Intrinsics,
     cfg: &Config,
 ) -> CertainClusters {
@@ -400,74 +382,20 @@ pub(super) fn certain_clusters(
         }
     }
 
-    // Area seen from the camera (metres²), 3-D centre, metric frame and the mask's label
-    // at its pixel centre (0 off the image) of each region with samples whose area is at
-    // least region_min_area_m2 (None otherwise).
-    type Shape = (
-        Real,
-        Vector3<Real>,
-        Option<(Real, Real, Vector3<Real>)>,
-        u16,
-    );
-    let mut shapes: FixedVec<Option<Shape>, MAX_CLUSTERS> = FixedVec::new();
-    for sum in &sums {
-        let centre = sum.mean_cam();
-        let area_m2 = sum.pixels as Real * centre.z * centre.z / (intrinsics.fx * intrinsics.fy);
-        let kept = sum.samples > 0 && area_m2 >= cfg.region_min_area_m2;
-        let [px, py] = sum.mean_px();
-        let label = mask.at(round(px) as i64, round(py) as i64).unwrap_or(0);
-        // `shapes` has the capacity of `sums`.
-        let _ = shapes.push(kept.then(|| (area_m2, centre, sum.metric_frame(), label)));
-    }
-    // Two look-alike objects side by side whose cut the heatmap missed: another region,
-    // one object by its length, is the half of this one, at its height (module docs,
-    // step 4).
-    let is_twin_pair = |region: usize, (area_m2, centre, frame, label): Shape| {
-        let Some((long, short, normal)) = frame else {
-            return false;
-        };
-        let near = |a: Real, b: Real| (a - b).abs() <= TWIN_LEN_TOL * b;
-        long <= cfg.region_max_len_m
-            && shapes
-                .iter()
-                .enumerate()
-                .any(|(other, shape)| match *shape {
-                    Some((a, c, Some((x, y, _)), other_label))
-                        if other != region
-                            && x <= cfg.region_max_len_m
-                            && other_label != 0
-                            && other_label != label =>
-                    {
-                        (area_m2 - 2.0 * a).abs() <= TWIN_AREA_TOL * 2.0 * a
-                            && ((near(long, 2.0 * x) && near(short, y))
-                                || (near(long, 2.0 * y) && near(short, x)))
-                            && normal.dot(&(c - centre)).abs() <= TWIN_HEIGHT_TOL_M
-                    }
-                    _ => false,
-                })
-    };
-
     // Pieces: kept regions, oversized ones split.
     let mut pieces: FixedVec<(Cluster, u32), { MAX_CLUSTERS * MAX_PIECES }> = FixedVec::new();
-    for (region, (sum, shape)) in sums.iter().zip(&shapes).enumerate() {
-        let Some(shape) = *shape else {
-            continue;
-        };
-        let (_, centre, frame, _) = shape;
-        if is_twin_pair(region, shape) {
-            split_region(
-                sum,
-                region as u32,
-                [2, 1],
-                s,
-                nearest,
-                intrinsics,
-                cfg,
-                &mut pieces,
-            );
+    for (region, sum) in sums.iter().enumerate() {
+        if sum.samples == 0 {
             continue;
         }
-        match frame.map(|(long, short, _)| (long, short)) {
+        let centre = sum.mean_cam();
+        let m_per_px2 = centre.z * centre.z / (intrinsics.fx * intrinsics.fy);
+        let area_m2 = sum.pixels as Real * m_per_px2;
+        if area_m2.is_nan() || area_m2 < cfg.region_min_area_m2 {
+            continue;
+        }
+        let lengths = sum.metric_lengths();
+        match lengths {
             Some((long, short)) if long > cfg.region_max_len_m => {
                 let per_axis = |len: Real, lo: usize, hi: usize| {
                     (round(len / cfg.region_cell_m) as usize).clamp(lo, hi)

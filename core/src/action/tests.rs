@@ -181,7 +181,6 @@ fn with_region_map<R>(
         &row_runs,
         &cp.prefix(nc),
         &mut nearest,
-        &ImageView::packed(W, H, &vec![0_u16; W * H]).unwrap(),
         &k,
         cfg,
     );
@@ -439,75 +438,6 @@ fn one_object_is_one_cluster_and_a_region_much_longer_than_an_object_is_split() 
     for c in report.certain() {
         assert!((c.centre_px[1] - 112.0).abs() < 1.0);
     }
-}
-
-#[test]
-fn two_look_alike_boxes_with_no_cut_beside_one_of_them_are_two_clusters() {
-    let cfg = Config::PAPER;
-    // Mask labels: `label` on pixels x0 <= x < x1, y0 <= y < y1 of each box.
-    let mask_of = |boxes: &[(usize, usize, usize, usize, u16)]| {
-        let mut mask = vec![0_u16; W * H];
-        for &(x0, y0, x1, y1, label) in boxes {
-            for y in y0..y1 {
-                mask[y * W + x0..y * W + x1].fill(label);
-            }
-        }
-        mask
-    };
-    let certain = |s: &Scene, mask: &[u16]| {
-        run_masked(W, H, &s.heat, &s.depth, mask, &intrinsics(), &cfg)
-            .unwrap()
-            .certain()
-            .to_vec()
-    };
-    // Three 4 cm boxes of one pack after a push: one alone (a 4 cm square) that the mask
-    // already holds apart, two still flush whose cut the heatmap missed (an 8 cm × 4 cm
-    // bar, no longer than region_max_len_m, one segment of the mask). The bar is two
-    // copies of the lone box, at its height: two clusters.
-    let lone = (100, 100, 120, 120, 2);
-    let bar = (130, 100, 170, 120, 1);
-    let mut s = Scene::new();
-    s.rect(100, 100, 120, 120, 255)
-        .rect(130, 100, 170, 120, 255);
-    let clusters = certain(&s, &mask_of(&[lone, bar]));
-    assert_eq!(clusters.len(), 3, "{clusters:?}");
-    for x in [109.5, 139.5, 159.5] {
-        assert!(
-            find(&clusters, x, 109.5).is_some(),
-            "no cluster at x = {x}: {clusters:?}"
-        );
-    }
-    // The lone box in the bar's segment (the mask merges the whole pack: nothing is yet
-    // known to be one object), or on background: the bar stays one.
-    assert_eq!(certain(&s, &mask_of(&[(100, 100, 170, 120, 1)])).len(), 2);
-    assert_eq!(certain(&s, &mask_of(&[bar])).len(), 2);
-    // The lone box 2 cm taller (not look-alike): one.
-    let mut taller = Scene::new();
-    taller
-        .rect(100, 100, 120, 120, 255)
-        .rect(130, 100, 170, 120, 255);
-    for y in 100..120 {
-        taller.depth[y * W + 100..y * W + 120].fill(Z_M - 0.02);
-    }
-    assert_eq!(certain(&taller, &mask_of(&[lone, bar])).len(), 2);
-    // Alone, the bar is one object: nothing says how large one object is.
-    let mut s = Scene::new();
-    s.rect(130, 100, 170, 120, 255);
-    assert_eq!(certain(&s, &mask_of(&[bar])).len(), 1);
-    // Beside a smaller object that is not its half (a 3 cm square: loose objects of
-    // similar size, one long box among them), too.
-    s.rect(80, 100, 95, 115, 255);
-    assert_eq!(
-        certain(&s, &mask_of(&[bar, (80, 100, 95, 115, 2)])).len(),
-        2
-    );
-    // Beside a box of its own area, too.
-    let mut s = Scene::new();
-    s.rect(130, 100, 170, 120, 255).rect(60, 100, 90, 125, 255);
-    assert_eq!(
-        certain(&s, &mask_of(&[bar, (60, 100, 90, 125, 2)])).len(),
-        2
-    );
 }
 
 #[test]

@@ -175,19 +175,107 @@ fn moved_set(
     moved
 }
 
-/// Pairs of clusters with one label (not background) in the accumulated mask that the
-/// moved set `moved` splits: one of the two moves, the other stays.
-pub(super) fn splits(labels: &[u16], moved: u32) -> u32 {
-    let mut n = 0;
+/// Pairs of objects of one segment of the accumulated mask (label not background) that
+/// the moved set `moved` splits: one of the two moves, the other stays. Segment `l` holds
+/// `n = max(c, objects[k])` objects, `c` the clusters with label `l` and `k` the first of
+/// them; `m` of its clusters move, each taken as one object, so `m · (n − m)` of its
+/// pairs are split (`0` when every object moves). With `objects` all `0` (or shorter than
+/// `labels`) this is the number of pairs of clusters of one label that the push splits.
+pub(super) fn splits(labels: &[u16], objects: &[u32], moved: u32) -> u32 {
+    let mut n = 0u32;
     for (a, &la) in labels.iter().enumerate().take(32) {
-        for (b, &lb) in labels.iter().enumerate().take(32).skip(a + 1) {
-            if la != 0 && la == lb && ((moved >> a) ^ (moved >> b)) & 1 == 1 {
-                n += 1;
+        // Each segment once, at its first cluster.
+        if la == 0 || labels.iter().take(a).any(|&l| l == la) {
+            continue;
+        }
+        let (mut clusters, mut moving) = (0u32, 0u32);
+        for (b, &lb) in labels.iter().enumerate().take(32) {
+            if lb == la {
+                clusters += 1;
+                moving += (moved >> b) & 1;
             }
         }
+        let total = clusters.max(objects.get(a).copied().unwrap_or(0));
+        n = n.saturating_add(moving.saturating_mul(total.saturating_sub(moving)));
     }
     n
 }
+
+/// Most objects the size prior gives one segment (a 2 × 3 pack, as in step 4).
+const MAX_SEGMENT_OBJECTS: u32 = 6;
+
+/// The size prior of step 8: for each cluster, how many objects its segment of `mask`
+/// (label `labels[k]`) holds by area: the segment's metric area (pixels times `z̄²/(fx·fy)`,
+/// `z̄` the mean depth of the segment's clusters' 3-D centres) in units of the smallest
+/// such segment, rounded, at most [`MAX_SEGMENT_OBJECTS`]; `0` for background. Objects
+/// of one scene look alike, so the smallest segment that holds a cluster is taken as one
+/// object.
+fn segment_objects(
+    mask: &ImageView<'_, u16>,
+    labels: &[u16],
+    clusters: &[Cluster],
+    intrinsics: &Intrinsics,
+) -> FixedVec<u32, MAX_CLUSTERS> {
+    // Distinct labels, their pixel counts and summed cluster depths.
+    let mut seg: FixedVec<(u16, u32, Real, u32), MAX_CLUSTERS> = FixedVec::new();
+    for (&l, c) in labels.iter().zip(clusters) {
+        if l == 0 {
+            continue;
+        }
+        match seg.iter_mut().find(|s| s.0 == l) {
+            Some(s) => {
+                s.2 += c.centre_cam_m.z;
+                s.3 += 1;
+            }
+            None => {
+                let _ = seg.push((l, 0, c.centre_cam_m.z, 1));
+            }
+        }
+    }
+    let mut out: FixedVec<u32, MAX_CLUSTERS> = FixedVec::new();
+    if seg.len() < 2 {
+        // One segment (or none) is its own unit: the prior adds nothing.
+        for _ in labels {
+            let _ = out.push(0);
+        }
+        return out;
+    }
+    let (_, height) = mask.size();
+    for y in 0..height {
+        let Some(row) = mask.row(y) else { break };
+        for &l in row {
+            if l != 0
+                && let Some(s) = seg.iter_mut().find(|s| s.0 == l)
+            {
+                s.1 = s.1.saturating_add(1);
+            }
+        }
+    }
+    let fxy = intrinsics.fx * intrinsics.fy;
+    let area = |s: &(u16, u32, Real, u32)| {
+        let z = s.2 / s.3.max(1) as Real;
+        s.1 as Real * z * z / fxy
+    };
+    let unit = seg
+        .iter()
+        .filter(|s| s.1 > 0)
+        .map(area)
+        .fold(Real::INFINITY, Real::min);
+    for &l in labels {
+        let n = seg
+            .iter()
+            .find(|s| s.0 == l)
+            .map(|s| round(area(s) / unit))
+            .filter(|n| n.is_finite() && *n >= 1.0)
+            .map_or(0, |n| (n as u32).min(MAX_SEGMENT_OBJECTS));
+        let _ = out.push(n);
+    }
+    out
+}
+
+/// A candidate's rank: (pairs of clusters split, pairs of objects split by the size prior,
+/// `u32::MAX` less the clusters moved); higher is better.
+type Key = (u32, u32, u32);
 
 /// The push FindAction makes (module docs, steps 8-10), with its pair as pushed (the
 /// pair's pushed cluster first, then the other one). `pairs` are in rank order; each
@@ -198,7 +286,9 @@ pub(super) fn splits(labels: &[u16], moved: u32) -> u32 {
 /// [`Config::push_carry_frac`] `0` the first candidate is made. Otherwise every
 /// candidate's moved set is predicted ([`moved_set`]) and the candidate that splits the
 /// most pairs of clusters sharing a label of `mask` is made, then the one that moves the
-/// fewest clusters, then the earliest; when no candidate splits such a pair, the first.
+/// fewest clusters, then the earliest; when no candidate splits such a pair, the one that
+/// splits the most pairs of objects by the size prior ([`segment_objects`]), in the same
+/// order; when none does either, the first.
 pub(super) fn choose_push(
     map: &RegionMap<'_>,
     mask: &ImageView<'_, u16>,
@@ -217,8 +307,12 @@ pub(super) fn choose_push(
             let _ = labels.push(label);
         }
     }
-    // Best so far: (pairs split, clusters moved), the candidate.
-    let mut best: Option<((u32, u32), (Pair, Push))> = None;
+    let objects = if score {
+        segment_objects(mask, &labels, map.clusters, intrinsics)
+    } else {
+        FixedVec::new()
+    };
+    let mut best: Option<(Key, (Pair, Push))> = None;
     for pair in pairs {
         let side: Real = if rng.below(2) == 0 { 1.0 } else { -1.0 };
         for (pushed, other) in [(pair.pushed, pair.other), (pair.other, pair.pushed)] {
@@ -253,16 +347,23 @@ pub(super) fn choose_push(
                 let m_per_px = ci.centre_cam_m.z / intrinsics.fx;
                 let gap_px = CARRY_GAP_MAX_M / m_per_px;
                 let moved = moved_set(map, pushed, dir, cfg.push_carry_frac * len, gap_px);
-                let split = splits(&labels, moved);
+                let split = splits(&labels, &[], moved);
                 // A seam pair is only pushed to split a segment (module docs, step 7).
                 if split == 0 && is_seam(pair, cfg) {
                     continue;
                 }
-                // With no split, every candidate ties and the first stays.
-                let key = if split > 0 {
-                    (split, u32::MAX - moved.count_ones())
+                // Pairs of objects the size prior says the push splits: only weighed
+                // when no candidate splits a pair of clusters.
+                let prior = if split > 0 {
+                    0
                 } else {
-                    (0, 0)
+                    splits(&labels, &objects, moved)
+                };
+                // With no split, every candidate ties and the first stays.
+                let key = if split > 0 || prior > 0 {
+                    (split, prior, u32::MAX - moved.count_ones())
+                } else {
+                    (0, 0, 0)
                 };
                 if best.as_ref().is_none_or(|(b, _)| key > *b) {
                     best = Some((key, found));

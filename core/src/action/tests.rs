@@ -1099,11 +1099,20 @@ fn an_object_already_split_off_is_not_pushed_again() {
 fn splits_count_pairs_of_one_label_that_one_push_separates() {
     // Labels 1 1 2 2 0 0 (0: background, never a pair); clusters 0, 2 and 4 move.
     let labels = [1, 1, 2, 2, 0, 0];
-    assert_eq!(push::splits(&labels, 0b01_0101), 2);
+    assert_eq!(push::splits(&labels, &[], 0b01_0101), 2);
     // Moving all of a label, or nothing, splits none of it.
-    assert_eq!(push::splits(&labels, 0b00_0011), 0);
-    assert_eq!(push::splits(&labels, 0), 0);
-    assert_eq!(push::splits(&[7, 7, 7], 0b010), 2);
+    assert_eq!(push::splits(&labels, &[], 0b00_0011), 0);
+    assert_eq!(push::splits(&labels, &[], 0), 0);
+    assert_eq!(push::splits(&[7, 7, 7], &[], 0b010), 2);
+    // The size prior: label 1's segment holds three objects by area, label 2's one.
+    let objects = [3, 3, 1, 1, 0, 0];
+    // One of label 1's two clusters moves: 1 · (3 − 1) pairs; label 2's as before.
+    assert_eq!(push::splits(&labels, &objects, 0b01_0101), 3);
+    // Both of label 1's clusters move, its third object stays: 2 · (3 − 2).
+    assert_eq!(push::splits(&labels, &objects, 0b00_0011), 2);
+    // A lone cluster of a segment of two objects.
+    assert_eq!(push::splits(&[4, 5], &[2, 1], 0b01), 1);
+    assert_eq!(push::splits(&[4, 5], &[2, 1], 0b10), 0);
 }
 
 /// Two columns of three boxes (34 × 30 px, about 6.8 × 6 cm) along y, already sheared
@@ -1182,4 +1191,56 @@ fn a_column_with_no_uncertain_centre_beside_it_is_still_split_across_its_cuts() 
     let (pair, push) = push.expect("a push");
     assert!(!is_seam(&pair, &paper));
     assert!(push.direction_cam.y.abs() > 0.99, "{push:?}");
+}
+
+/// A 1×3 row of 4 × 4 cm boxes (20 px) along x, with a rim: the heatmap cuts only between
+/// the second and the third box, so the first two share one certain region (7 cm, one
+/// cluster). The mask, like the heatmap, gives the first two boxes label 1 and the third
+/// label 2. Returns the scene, the mask and the x where the two segments meet.
+fn row_two_boxes_one_region() -> (Scene, Vec<u16>, Real) {
+    let (x0, y0, side) = (60usize, 100usize, 20usize);
+    let cut = x0 + 2 * side;
+    let x1 = x0 + 3 * side;
+    let mut s = Scene::new();
+    s.rect(x0, y0, x1, y0 + side, 100)
+        .rect(x0 + 2, y0 + 2, x1 - 2, y0 + side - 2, 255)
+        .rect(cut - 3, y0 + 2, cut + 4, y0 + side - 2, 130);
+    let mut mask = vec![0u16; W * H];
+    for y in y0..y0 + side {
+        for x in x0..x1 {
+            mask[y * W + x] = if x < cut { 1 } else { 2 };
+        }
+    }
+    (s, mask, cut as Real)
+}
+
+#[test]
+fn the_segment_twice_the_area_of_another_is_pushed_though_it_has_one_cluster() {
+    // Two clusters, one per label: no push splits a pair of clusters of one label. By
+    // area, label 1's segment holds two objects (twice label 2's): a push across the row
+    // at its cluster splits it; one at the lone box splits nothing.
+    let (s, mask, cut) = row_two_boxes_one_region();
+    let targets = |cfg: &Config| -> Vec<Real> {
+        (0..16)
+            .map(|seed| {
+                let cfg = Config { seed, ..*cfg };
+                let report =
+                    run_masked(W, H, &s.heat, &s.depth, &mask, &intrinsics(), &cfg).unwrap();
+                assert_eq!(report.certain().len(), 2, "seed {seed}");
+                let push = report.push().expect("push");
+                // Across the row: only the pushed cluster moves.
+                assert!(push.direction_cam.y.abs() > 0.99, "seed {seed}: {push:?}");
+                push.target_px[0]
+            })
+            .collect()
+    };
+    for x in targets(&Config::PAPER) {
+        assert!(x < cut, "{x} {cut}");
+    }
+    // The paper's choice pushes the smaller cluster of the pair: the lone box.
+    let paper = Config {
+        push_carry_frac: 0.0,
+        ..Config::PAPER
+    };
+    assert!(targets(&paper).iter().all(|&x| x > cut));
 }

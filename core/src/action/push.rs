@@ -241,12 +241,15 @@ fn segment_objects(
         return out;
     }
     let (_, height) = mask.size();
+    // Labels come in runs along a row: look each run's segment up once.
+    let mut run: (u16, Option<usize>) = (0, None);
     for y in 0..height {
         let Some(row) = mask.row(y) else { break };
         for &l in row {
-            if l != 0
-                && let Some(s) = seg.iter_mut().find(|s| s.0 == l)
-            {
+            if l != run.0 {
+                run = (l, seg.iter().position(|s| s.0 == l));
+            }
+            if let Some(s) = run.1.and_then(|i| seg.get_mut(i)) {
                 s.1 = s.1.saturating_add(1);
             }
         }

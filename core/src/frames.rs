@@ -470,7 +470,7 @@ fn build_frame(
     build_frame_listing::<LISTED_ON_STACK>(input, cfg, samples, i)
 }
 
-/// [`build_frame`], listing at most `CAP` candidates (a power of two, at most
+/// [`build_frame`], listing fewer than `CAP` candidates (a power of two, at most
 /// [`LISTED_ON_STACK`]) before it falls back to [`best_triangle`]; tests use a small
 /// `CAP` to reach the fallback.
 fn build_frame_listing<const CAP: usize>(
@@ -503,8 +503,8 @@ fn build_frame_listing<const CAP: usize>(
     // out by its pixel in the passes that follow.)
     let candidate = |s: &FrameSample| (s.px[0].wrapping_sub(x_lo) <= x_span) & (s.key == key);
     // The window's candidates, listed without a branch per sample (the column test is a
-    // coin flip for the branch predictor). An entry past `CAP` wraps and overwrites an
-    // earlier one (the mask only spares a bounds check); such a list is not used. Window
+    // coin flip for the branch predictor). A write at `CAP` wraps and overwrites the
+    // first entry (the mask only spares a bounds check); such a list is not used. Window
     // places fit `u16` (checked first).
     if window.len() <= 1 << 16 {
         let mut listed = [0u16; CAP];
@@ -513,7 +513,10 @@ fn build_frame_listing<const CAP: usize>(
             listed[count & (CAP - 1)] = k as u16;
             count += usize::from(candidate(s));
         }
-        if let Some(listed) = listed.get_mut(..count) {
+        // At `CAP` the next write already wrapped.
+        if count < CAP
+            && let Some(listed) = listed.get_mut(..count)
+        {
             return best_triangle_listed(o, window, listed, cfg);
         }
     }
@@ -524,9 +527,9 @@ fn build_frame_listing<const CAP: usize>(
     )
 }
 
-/// Most candidates [`build_frame`] lists on the stack (2 bytes an entry, and 4 for each
-/// one's distance in [`best_triangle_listed`]); with more, the window is scanned by
-/// [`best_triangle`] instead.
+/// Room for the candidates [`build_frame`] lists on the stack (2 bytes an entry, and 4
+/// for each one's distance in [`best_triangle_listed`]); from this many on, the window is
+/// scanned by [`best_triangle`] instead.
 const LISTED_ON_STACK: usize = 512;
 const _: () = assert!(LISTED_ON_STACK.is_power_of_two());
 

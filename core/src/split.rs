@@ -104,7 +104,13 @@ pub fn split_mixed_groups(
     let mut g = 0;
     while g < count {
         if count < capacity
-            && let Some(new) = split_one(frames, cfg, frame_group, (side, &mut *misses), (g, row_order))
+            && let Some(new) = split_one(
+                frames,
+                cfg,
+                frame_group,
+                (side, &mut *misses),
+                (g, row_order),
+            )
         {
             let new_id = count as u16;
             for (fg, &s) in frame_group.iter_mut().zip(side.iter()) {

@@ -25,7 +25,7 @@
 //! Cost: three passes over the `n(n−1)/2` pairs; the first computes distances and stores
 //! each pair's KDE bin in one byte, the other two read bins only.
 
-use wide::f32x4;
+use wide::{f32x4, u8x16};
 
 use crate::{
     Config, Error, Twist,
@@ -252,8 +252,8 @@ pub fn group_frames(
     // current attachment, so comparing with it needs no look-up of that pair's code.
     attach.fill(NONE);
     let attached_near = &mut *parent;
-    // Runs of codes that cannot attach are skipped in bulk where a bound tells them
-    // (the closure still tests each code it is called with).
+    // Only the pairs whose codes attach are visited where a bound tells them (the
+    // closure still tests each code it is called with).
     let attach_below = codes_below(&attaches_at);
     for_each_pair_below(n, pair_bin, attach_below, |i, j, code| {
         if !attaches_at[usize::from(code)] {
@@ -675,11 +675,9 @@ fn add_links_below(row: &[u8], later: &mut [u32], bound: u8) -> u32 {
     own
 }
 
-/// Codes [`for_each_pair_below`] tests for being below the bound at once.
-const SKIP_CODES: usize = 32;
-
-/// [`for_each_pair`], leaving out runs of [`SKIP_CODES`] codes none of which is below
-/// `bound` (when there is one); `f` is called for every other pair, in the same order.
+/// [`for_each_pair`] for the pairs whose code is below `bound` (all pairs without one);
+/// `f` may be called for others too. Sixteen codes are compared at once, and only the
+/// ones below the bound are visited: a branch per code would be a coin flip.
 fn for_each_pair_below(
     n: usize,
     pair_bin: &[u8],
@@ -689,14 +687,23 @@ fn for_each_pair_below(
     let Some(bound) = bound else {
         return for_each_pair(n, pair_bin, f);
     };
+    let bound16 = u8x16::splat(bound);
     for (i, row) in pair_rows(n, pair_bin) {
-        for (c, run) in row.chunks(SKIP_CODES).enumerate() {
-            // The smallest code of the run, by a reduction that vectorises.
-            if run.iter().fold(u8::MAX, |m, &code| m.min(code)) >= bound {
-                continue;
+        let (sixteens, rest) = row.as_chunks::<16>();
+        for (c, codes) in sixteens.iter().enumerate() {
+            let mut below = u8x16::new(*codes).simd_lt(bound16).to_bitmask();
+            while below != 0 {
+                let k = below.trailing_zeros() as usize;
+                below &= below - 1;
+                if let Some(&code) = codes.get(k) {
+                    f(i, i + 1 + c * 16 + k, code);
+                }
             }
-            for (k, &code) in run.iter().enumerate() {
-                f(i, i + 1 + c * SKIP_CODES + k, code);
+        }
+        let done = sixteens.len() * 16;
+        for (k, &code) in rest.iter().enumerate() {
+            if code < bound {
+                f(i, i + 1 + done + k, code);
             }
         }
     }

@@ -467,6 +467,19 @@ fn build_frame(
     samples: &[FrameSample],
     i: usize,
 ) -> Option<BodyFrame> {
+    build_frame_listing::<LISTED_ON_STACK>(input, cfg, samples, i)
+}
+
+/// [`build_frame`], listing fewer than `CAP` candidates (a power of two, at most
+/// [`LISTED_ON_STACK`]) before it falls back to [`best_triangle`]; tests use a small
+/// `CAP` to reach the fallback.
+fn build_frame_listing<const CAP: usize>(
+    input: &MotionInput<'_>,
+    cfg: &Config,
+    samples: &[FrameSample],
+    i: usize,
+) -> Option<BodyFrame> {
+    const { assert!(CAP.is_power_of_two() && CAP <= LISTED_ON_STACK) };
     let o = samples.get(i)?;
     let k = &input.intrinsics;
     let max_side = cfg.frame_max_side_m;
@@ -489,29 +502,36 @@ fn build_frame(
     // Tracked, same label, columns within reach. (The origin itself passes: it is left
     // out by its pixel in the passes that follow.)
     let candidate = |s: &FrameSample| (s.px[0].wrapping_sub(x_lo) <= x_span) & (s.key == key);
-    if window.len() > WINDOW_ON_STACK {
-        return best_triangle(
-            o,
-            window.iter().filter(|s| candidate(s) && s.px != o.px),
-            cfg,
-        );
-    }
     // The window's candidates, listed without a branch per sample (the column test is a
-    // coin flip for the branch predictor). `count <= k < WINDOW_ON_STACK`, so the mask
-    // never changes the index; it only spares a bounds check.
-    let mut listed = [0u16; WINDOW_ON_STACK];
-    let mut count = 0;
-    for (k, s) in window.iter().enumerate() {
-        listed[count & (WINDOW_ON_STACK - 1)] = k as u16;
-        count += usize::from(candidate(s));
+    // coin flip for the branch predictor). A write at `CAP` wraps and overwrites the
+    // first entry (the mask only spares a bounds check); such a list is not used. Window
+    // places fit `u16` (checked first).
+    if window.len() <= 1 << 16 {
+        let mut listed = [0u16; CAP];
+        let mut count = 0;
+        for (k, s) in window.iter().enumerate() {
+            listed[count & (CAP - 1)] = k as u16;
+            count += usize::from(candidate(s));
+        }
+        // At `CAP` the next write already wrapped.
+        if count < CAP
+            && let Some(listed) = listed.get_mut(..count)
+        {
+            return best_triangle_listed(o, window, listed, cfg);
+        }
     }
-    best_triangle_listed(o, window, listed.get_mut(..count).unwrap_or(&mut []), cfg)
+    best_triangle(
+        o,
+        window.iter().filter(|s| candidate(s) && s.px != o.px),
+        cfg,
+    )
 }
 
-/// Largest window [`build_frame`] lists on the stack (6 bytes an entry); a larger one is
+/// Room for the candidates [`build_frame`] lists on the stack (2 bytes an entry, and 4
+/// for each one's distance in [`best_triangle_listed`]); from this many on, the window is
 /// scanned by [`best_triangle`] instead.
-const WINDOW_ON_STACK: usize = 512;
-const _: () = assert!(WINDOW_ON_STACK.is_power_of_two() && WINDOW_ON_STACK <= 1 << 16);
+const LISTED_ON_STACK: usize = 512;
+const _: () = assert!(LISTED_ON_STACK.is_power_of_two());
 
 /// Relative slack on the bound `|a|·|b|` of a triangle's doubled area `|a × b|` in
 /// [`best_triangle_listed`]: far above the few units in the last place by which the
@@ -543,7 +563,7 @@ fn best_triangle_listed(
     cfg: &Config,
 ) -> Option<BodyFrame> {
     let (min_side, max_side) = (cfg.frame_min_side_m, cfg.frame_max_side_m);
-    let mut dist = [0.0 as Real; WINDOW_ON_STACK];
+    let mut dist = [0.0 as Real; LISTED_ON_STACK];
     let mut near = 0;
     // The farthest so far as (place in `listed`, distance); a kept distance is never
     // `-∞`, so the first kept one always replaces the start. Selects, not branches: the
@@ -934,9 +954,10 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// The listed fast path of [`build_frame`] (and, at the long focal length, its
-        /// fallback past [`WINDOW_ON_STACK`]) picks the frame the plain scan picks, bit for
-        /// bit. Points sit on a coarse lattice so that equal distances and areas (ties)
+        /// The listed fast path of [`build_frame`], its fallback past the listing's
+        /// capacity (reached with a capacity of 8) and that fallback
+        /// ([`best_triangle`]) on every window pick the frame the plain scan picks, bit
+        /// for bit. Points sit on a coarse lattice so that equal distances and areas (ties)
         /// are common.
         #[test]
         fn build_frame_picks_what_the_plain_scan_picks(
@@ -979,10 +1000,23 @@ mod tests {
             .unwrap();
             let cfg = Config::PAPER;
             for i in 0..samples.len() {
+                let plain = build_frame_plain(&input, &cfg, &samples, i);
                 proptest::prop_assert_eq!(
-                    build_frame(&input, &cfg, &samples, i),
-                    build_frame_plain(&input, &cfg, &samples, i),
-                    "origin {}", i
+                    build_frame(&input, &cfg, &samples, i), plain, "origin {}", i
+                );
+                proptest::prop_assert_eq!(
+                    build_frame_listing::<8>(&input, &cfg, &samples, i),
+                    plain,
+                    "origin {} (capacity 8)", i
+                );
+                let o = &samples[i];
+                let same = |s: &&FrameSample| {
+                    s.tracked() && s.label() == o.label() && s.px != o.px
+                };
+                proptest::prop_assert_eq!(
+                    best_triangle(o, samples.iter().filter(same), &cfg),
+                    plain_triangle(o, samples.iter().filter(same), &cfg),
+                    "origin {} (whole set)", i
                 );
             }
         }

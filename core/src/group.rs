@@ -25,7 +25,7 @@
 //! Cost: three passes over the `n(n−1)/2` pairs; the first computes distances and stores
 //! each pair's KDE bin in one byte, the other two read bins only.
 
-use wide::f32x4;
+use wide::{f32x4, u8x16};
 
 use crate::{
     Config, Error, Twist,
@@ -192,10 +192,7 @@ pub fn group_frames(
         pair_codes(&lanes, i, (labels, links), (scale, bins_per_m), row);
     }
     // Histograms (index 0: inside one segment, 1: across), counted per code first.
-    let mut per_code = [0u32; 256];
-    for &code in pair_bin.iter() {
-        per_code[usize::from(code)] += 1;
-    }
+    let per_code = count_codes(pair_bin);
     let mut hist = [[0u32; KDE_BINS]; 2];
     let [inside, across] = &mut hist;
     for (b, (inside, across)) in inside.iter_mut().zip(across.iter_mut()).enumerate() {
@@ -221,19 +218,28 @@ pub fn group_frames(
         *attach = *link && nearness(code) <= attach_bins;
     }
 
-    // Pass 2: density of each frame = its number of links.
+    // Pass 2: density of each frame = its number of links. The posterior usually falls
+    // with the distance, so that the linking codes are the ones below a bound: then the
+    // table look-up is one compare, which vectorises.
     let density = links;
     density.fill(0);
+    let link_below = codes_below(&links_at);
     for (i, row) in pair_rows(n, pair_bin) {
         let Some(later) = density.get_mut(i + 1..) else {
             break;
         };
-        let mut own = 0u32;
-        for (&code, d) in row.iter().zip(later) {
-            let link = u32::from(links_at[usize::from(code)]);
-            own += link;
-            *d += link;
-        }
+        let own = match link_below {
+            Some(bound) => add_links_below(row, later, bound),
+            None => {
+                let mut own = 0u32;
+                for (&code, d) in row.iter().zip(later) {
+                    let link = u32::from(links_at[usize::from(code)]);
+                    own += link;
+                    *d += link;
+                }
+                own
+            }
+        };
         if let Some(d) = density.get_mut(i) {
             *d += own;
         }
@@ -246,7 +252,10 @@ pub fn group_frames(
     // current attachment, so comparing with it needs no look-up of that pair's code.
     attach.fill(NONE);
     let attached_near = &mut *parent;
-    for_each_pair(n, pair_bin, |i, j, code| {
+    // Only the pairs whose codes attach are visited where a bound tells them (the
+    // closure still tests each code it is called with).
+    let attach_below = codes_below(&attaches_at);
+    for_each_pair_below(n, pair_bin, attach_below, |i, j, code| {
         if !attaches_at[usize::from(code)] {
             return;
         }
@@ -462,10 +471,6 @@ fn fill_lanes<'a>(twists: &[Twist], lanes: &'a mut [Real]) -> [&'a [Real]; TWIST
 /// [`ACROSS`] for a pair across segments, or [`NO_PAIR`].
 #[inline]
 fn pair_code(d: Real, bins_per_m: Real, across: bool, both_moving: bool) -> u8 {
-    // Across segments only pairs of moving frames are data.
-    if across && !both_moving {
-        return NO_PAIR;
-    }
     // NaN fails the comparison and lands in the last bin.
     let b = d * bins_per_m;
     let b = if b < KDE_BINS as Real {
@@ -473,7 +478,48 @@ fn pair_code(d: Real, bins_per_m: Real, across: bool, both_moving: bool) -> u8 {
     } else {
         KDE_BINS as u8 - 1
     };
-    b | if across { ACROSS } else { 0 }
+    code_of_bin(b, across, both_moving)
+}
+
+/// [`pair_code`] from the pair's bin.
+#[inline]
+fn code_of_bin(bin: u8, across: bool, both_moving: bool) -> u8 {
+    // Across segments only pairs of moving frames are data.
+    if across && !both_moving {
+        return NO_PAIR;
+    }
+    bin | if across { ACROSS } else { 0 }
+}
+
+/// The bins [`pair_code`] takes from four `d · bins_per_m`, bit for bit: truncated below
+/// [`KDE_BINS`], the last bin otherwise (NaN too).
+#[inline]
+fn four_bins(b: f32x4) -> [u8; 4] {
+    let last = f32x4::splat((KDE_BINS - 1) as Real);
+    // Every lane is then a whole number in `[0, KDE_BINS)` or a value in it to truncate
+    // (or `-0`, which truncates to 0), so the conversion is exact and never saturates.
+    let b = b.simd_lt(f32x4::splat(KDE_BINS as Real)).select(b, last);
+    b.fast_trunc_int().to_array().map(|x| x as u8)
+}
+
+/// Square roots of four lanes, correctly rounded as [`sqrt`] is: one instruction where
+/// the target has one (SSE, WebAssembly SIMD, NEON on aarch64; IEEE 754 square roots
+/// are exact), lane by lane otherwise.
+#[inline]
+fn sqrt4(x: f32x4) -> f32x4 {
+    #[cfg(any(
+        target_feature = "sse",
+        target_feature = "simd128",
+        all(target_feature = "neon", target_arch = "aarch64")
+    ))]
+    let root = x.sqrt();
+    #[cfg(not(any(
+        target_feature = "sse",
+        target_feature = "simd128",
+        all(target_feature = "neon", target_arch = "aarch64")
+    )))]
+    let root = f32x4::new(x.to_array().map(sqrt));
+    root
 }
 
 /// The squared distances [`Twist::distance`] takes the root of, from one twist (`ti`,
@@ -530,12 +576,14 @@ fn pair_codes(
     let done = row4.len() * 4;
     let [w0, w1, w2, v0, v1, v2] = fours;
     let tj4 = w0.iter().zip(w1).zip(w2).zip(v0).zip(v1).zip(v2);
+    let bins_per_m4 = f32x4::splat(bins_per_m);
     for (((out, lj), mj), tj) in row4.iter_mut().zip(labels4).zip(moving4).zip(tj4) {
         let (((((w0, w1), w2), v0), v1), v2) = tj;
         let tj = [w0, w1, w2, v0, v1, v2];
         let norm2 = four_distances_squared(&ti4, tj, scale2_4);
+        let bins = four_bins(sqrt4(f32x4::new(norm2)) * bins_per_m4);
         for k in 0..4 {
-            out[k] = code(sqrt(norm2[k]), lj[k], mj[k]);
+            out[k] = code_of_bin(bins[k], li != lj[k], (mi & mj[k]) != 0);
         }
     }
     for (k, slot) in rest.iter_mut().enumerate() {
@@ -551,6 +599,24 @@ fn pair_codes(
         );
         *slot = code(sqrt(v2 + scale2 * w2), lj, mj);
     }
+}
+
+/// How many times each code occurs in `codes`. Four tables, one for each byte of a
+/// group of four, so that runs of one code (common: most pairs of a body share a bin)
+/// do not wait on their own last count; the sums are the same.
+fn count_codes(codes: &[u8]) -> [u32; 256] {
+    let mut tables = [[0u32; 256]; 4];
+    let (fours, rest) = codes.as_chunks::<4>();
+    for four in fours {
+        for (table, &code) in tables.iter_mut().zip(four) {
+            table[usize::from(code)] += 1;
+        }
+    }
+    for &code in rest {
+        tables[0][usize::from(code)] += 1;
+    }
+    let [a, b, c, d] = &tables;
+    core::array::from_fn(|k| a[k] + b[k] + c[k] + d[k])
 }
 
 fn bump(counts: &mut [u32], i: usize) {
@@ -585,6 +651,60 @@ fn for_each_pair(n: usize, pair_bin: &[u8], mut f: impl FnMut(usize, usize, u8))
     for (i, row) in pair_rows(n, pair_bin) {
         for (k, &code) in row.iter().enumerate() {
             f(i, i + 1 + k, code);
+        }
+    }
+}
+
+/// `bound` if `table` holds exactly for the codes below it, `None` if it is not of
+/// that form.
+fn codes_below(table: &[bool; 256]) -> Option<u8> {
+    let bound = table.iter().take_while(|&&t| t).count();
+    let rest = table.get(bound..).unwrap_or(&[]);
+    (rest.iter().all(|&t| !t)).then_some(u8::try_from(bound).ok()?)
+}
+
+/// Pass 2 for one row when the linking codes are those below `bound`: adds each pair's
+/// link to the later frame's density (`later`) and returns the row's own link count.
+fn add_links_below(row: &[u8], later: &mut [u32], bound: u8) -> u32 {
+    let mut own = 0u32;
+    for (&code, d) in row.iter().zip(later) {
+        let link = u32::from(code < bound);
+        own += link;
+        *d += link;
+    }
+    own
+}
+
+/// [`for_each_pair`] for the pairs whose code is below `bound` (all pairs without one);
+/// `f` may be called for others too. Sixteen codes are compared at once, and only the
+/// ones below the bound are visited: a branch per code would be a coin flip.
+fn for_each_pair_below(
+    n: usize,
+    pair_bin: &[u8],
+    bound: Option<u8>,
+    mut f: impl FnMut(usize, usize, u8),
+) {
+    let Some(bound) = bound else {
+        return for_each_pair(n, pair_bin, f);
+    };
+    let bound16 = u8x16::splat(bound);
+    for (i, row) in pair_rows(n, pair_bin) {
+        let (sixteens, rest) = row.as_chunks::<16>();
+        for (c, codes) in sixteens.iter().enumerate() {
+            let mut below = u8x16::new(*codes).simd_lt(bound16).to_bitmask();
+            while below != 0 {
+                let k = below.trailing_zeros() as usize;
+                below &= below - 1;
+                if let Some(&code) = codes.get(k) {
+                    f(i, i + 1 + c * 16 + k, code);
+                }
+            }
+        }
+        let done = sixteens.len() * 16;
+        for (k, &code) in rest.iter().enumerate() {
+            if code < bound {
+                f(i, i + 1 + done + k, code);
+            }
         }
     }
 }
@@ -942,6 +1062,61 @@ mod tests {
                 .all(|&(i, j, code)| i < j && usize::from(code) == 10 * i + j)
         );
         assert!(seen.windows(2).all(|w| (w[0].0, w[0].1) < (w[1].0, w[1].1)));
+    }
+
+    proptest::proptest! {
+        /// [`codes_below`] finds the bound exactly when a table is of that form; pass 2's
+        /// compare gives the table's link counts; and [`for_each_pair_below`] calls its
+        /// closure for every pair below the bound, in [`for_each_pair`]'s order.
+        #[test]
+        fn bounded_passes_equal_the_table_passes(
+            n in 1usize..80,
+            codes in proptest::collection::vec(
+                proptest::prop_oneof![0u8..130, proptest::strategy::Just(NO_PAIR)],
+                0..3200,
+            ),
+            bound in 0u8..130,
+            flip in proptest::option::of(0u8..=255),
+        ) {
+            let mut table = [false; 256];
+            for (c, t) in table.iter_mut().enumerate() {
+                *t = c < usize::from(bound);
+            }
+            if let Some(f) = flip {
+                table[usize::from(f)] ^= true;
+            }
+            let expected = (0..=256usize)
+                .find(|&b| table.iter().enumerate().all(|(c, &t)| t == (c < b)))
+                .and_then(|b| u8::try_from(b).ok());
+            proptest::prop_assert_eq!(codes_below(&table), expected);
+
+            let len = GroupScratchLen::for_frames(n).pair_bin;
+            let bins: Vec<u8> = (0..len).map(|k| codes.get(k % codes.len().max(1)).copied().unwrap_or(0)).collect();
+            let mut plain = vec![0u32; n];
+            let mut fast = vec![0u32; n];
+            for (i, row) in pair_rows(n, &bins) {
+                let own = add_links_below(row, &mut fast[i + 1..], bound);
+                fast[i] += own;
+                for (k, &code) in row.iter().enumerate() {
+                    let link = u32::from(code < bound);
+                    plain[i] += link;
+                    plain[i + 1 + k] += link;
+                }
+            }
+            proptest::prop_assert_eq!(plain, fast);
+            let (mut all, mut skipping) = (Vec::new(), Vec::new());
+            for_each_pair(n, &bins, |i, j, code| {
+                if code < bound {
+                    all.push((i, j, code));
+                }
+            });
+            for_each_pair_below(n, &bins, Some(bound), |i, j, code| {
+                if code < bound {
+                    skipping.push((i, j, code));
+                }
+            });
+            proptest::prop_assert_eq!(all, skipping);
+        }
     }
 
     /// A twist component: ordinary, zero, huge or not a number.

@@ -29,6 +29,8 @@
 //! Frames of [`NO_GROUP`] are never touched. Deterministic, no
 //! heap, no panics: every index is checked.
 
+use core::hint::select_unpredictable;
+
 use nalgebra::{Matrix3, Point3, Translation3, Vector3};
 
 use crate::{
@@ -90,12 +92,25 @@ pub fn split_mixed_groups(
             .get_mut(..n * MISS_SCRATCH_PER_FRAME)
             .unwrap_or(&mut []),
     );
+    // Frames in row order (as CreateFrames writes them) let the neighbour searches walk
+    // a list of members only (`nearest_listed`), with the same result.
+    let row_order = n < 1 << 31
+        && frames.windows(2).all(|w| match w {
+            [a, b] => a.px_t[0][1] <= b.px_t[0][1],
+            _ => true,
+        });
     let capacity = groups.len().min(usize::from(NO_GROUP));
     let mut count = count.min(capacity);
     let mut g = 0;
     while g < count {
         if count < capacity
-            && let Some(new) = split_one(frames, cfg, frame_group, (side, &mut *misses), g)
+            && let Some(new) = split_one(
+                frames,
+                cfg,
+                frame_group,
+                (side, &mut *misses),
+                (g, row_order),
+            )
         {
             let new_id = count as u16;
             for (fg, &s) in frame_group.iter_mut().zip(side.iter()) {
@@ -183,13 +198,14 @@ struct Split {
 }
 
 /// Tries to split group `g` (module docs); on success `side` marks the frames of the part
-/// that moves away with `1`.
+/// that moves away with `1`. `row_order`: the frames are in row order (and fewer than
+/// `2^31`), so neighbours may be searched among a list of the members.
 fn split_one(
     frames: &[BodyFrame],
     cfg: &Config,
     frame_group: &[u16],
     (side, misses): (&mut [u32], &mut [Real]),
-    g: usize,
+    (g, row_order): (usize, bool),
 ) -> Option<Split> {
     let is_member = |i: usize| frame_group.get(i).is_some_and(|&fg| usize::from(fg) == g);
     let min_part = MIN_PART_FRAMES_PER_GROUP.saturating_mul(cfg.min_group_frames.max(1));
@@ -230,9 +246,34 @@ fn split_one(
     for (i, f) in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
         store(raw, i, miss(&one, f));
     }
+    // With the frames in row order, the members are listed in `side` (free until the
+    // first parts are set below) and searched among themselves ([`nearest_listed`]).
+    let mut listed = 0;
+    if row_order {
+        for (i, _) in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
+            if let Some(slot) = side.get_mut(listed) {
+                *slot = i as u32;
+                listed += 1;
+            }
+        }
+    }
+    let members_listed = side.get(..listed).unwrap_or(&[]);
     let (mut sum, mut outer, mut total_miss) = (Vector3::zeros(), Matrix3::zeros(), 0.0);
-    for (i, f) in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
-        let near = nearest::<SMOOTH_NEIGHBOURS>(frames, &is_member, i);
+    for (p, (i, f)) in frames
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| is_member(i))
+        .enumerate()
+    {
+        let near = if row_order {
+            // Places in the list, to frame indices (a missing one stays missing).
+            nearest_listed::<SMOOTH_NEIGHBOURS>(frames, members_listed, 0, p).map(|(d, q)| {
+                let j = members_listed.get(q).map_or(usize::MAX, |&j| j as usize);
+                (d, j)
+            })
+        } else {
+            nearest::<SMOOTH_NEIGHBOURS>(frames, &is_member, i)
+        };
         let own = stored(raw, i).unwrap_or_else(|| miss(&one, f));
         let (sum_near, n) = near
             .iter()
@@ -297,7 +338,11 @@ fn split_one(
         .fold(0.0, Real::max);
     if gap_m < MIN_MOTION_GAP_M
         || split_miss > MAX_MISS_RATIO * total_miss
-        || coherence(frames, &is_member, side) < MIN_COHERENCE
+        || if row_order {
+            coherence_listed(frames, &is_member, side)
+        } else {
+            coherence(frames, &is_member, side)
+        } < MIN_COHERENCE
     {
         return None;
     }
@@ -353,6 +398,61 @@ fn coherence(frames: &[BodyFrame], is_member: &impl Fn(usize) -> bool, side: &[u
     same as Real / total as Real
 }
 
+/// [`coherence`] for frames in row order (fewer than `2^31`), searching neighbours among a
+/// list of the members ([`nearest_listed`]), which is built in `side` itself: member `i`
+/// with side `s` is listed as `2i + s`, in index order (an entry never lands past the
+/// member it lists, so compacting in place reads each side before it is overwritten).
+/// `side` is restored before returning (non-members read 0 then, as they do after the
+/// split's first parts are set).
+fn coherence_listed(
+    frames: &[BodyFrame],
+    is_member: &impl Fn(usize) -> bool,
+    side: &mut [u32],
+) -> Real {
+    let n = side.len().min(frames.len());
+    let mut listed = 0;
+    for i in 0..n {
+        if is_member(i)
+            && let Some(&s) = side.get(i)
+            && let Some(slot) = side.get_mut(listed)
+        {
+            *slot = ((i as u32) << 1) | (s & 1);
+            listed += 1;
+        }
+    }
+    let members = side.get(..listed).unwrap_or(&[]);
+    let (mut same, mut total) = (0u32, 0u32);
+    for (p, &e) in members.iter().enumerate() {
+        for &(_, q) in &nearest_listed::<NEIGHBOURS>(frames, members, 1, p) {
+            if let Some(&f) = members.get(q) {
+                total += 1;
+                same += u32::from((f ^ e) & 1 == 0);
+            }
+        }
+    }
+    // Back to one side per frame: the entries are spread out from the last, so each is
+    // read before its place is written.
+    let mut next = n;
+    for p in (0..listed).rev() {
+        let e = side.get(p).copied().unwrap_or(0);
+        let i = (e >> 1) as usize;
+        for s in side.get_mut(i..next).unwrap_or(&mut []) {
+            *s = 0;
+        }
+        if let Some(s) = side.get_mut(i) {
+            *s = e & 1;
+        }
+        next = i;
+    }
+    for s in side.get_mut(..next).unwrap_or(&mut []) {
+        *s = 0;
+    }
+    if total == 0 {
+        return 0.0;
+    }
+    same as Real / total as Real
+}
+
 /// Where frame `i`'s three miss components are in a misses scratch; `None` when the
 /// offset overflows, as for [`nearest`]'s `usize::MAX` (no neighbour).
 fn miss_slot(i: usize) -> Option<core::ops::Range<usize>> {
@@ -371,13 +471,50 @@ fn nearest<const K: usize>(
     is_member: &impl Fn(usize) -> bool,
     i: usize,
 ) -> [(Real, usize); K] {
+    let both = |j| (j, j);
+    let (before, after) = ((0..i).rev().map(both), (i + 1..frames.len()).map(both));
+    nearest_among(frames, i, (before, after), is_member)
+}
+
+/// [`nearest`] for the member at place `p` of `members` (the member frames, ascending,
+/// frame `i` listed as `i << shift` plus bits below), walking the list instead of all
+/// frames; returns places in `members`, not frame indices. The same neighbours when the
+/// frames are in row order: a walk outward then meets growing row gaps, so the first frame
+/// [`nearest`] stops at, member or not, has every later member past the bound too.
+fn nearest_listed<const K: usize>(
+    frames: &[BodyFrame],
+    members: &[u32],
+    shift: u32,
+    p: usize,
+) -> [(Real, usize); K] {
+    let Some(&i) = members.get(p) else {
+        return [(Real::INFINITY, usize::MAX); K];
+    };
+    let index = move |(q, &e): (usize, &u32)| (q, (e >> shift) as usize);
+    let before = members.iter().enumerate().take(p).rev().map(index);
+    let after = members.iter().enumerate().skip(p + 1).map(index);
+    nearest_among(frames, (i >> shift) as usize, (before, after), &|_| true)
+}
+
+/// The search of [`nearest`]: visits the `(id, frame)`s of `before` (walking back from
+/// frame `i`), then those of `after`, each until a row gap exceeds the `K`-th distance so
+/// far, and keeps the ids of the `K` nearest that are members.
+fn nearest_among<const K: usize>(
+    frames: &[BodyFrame],
+    i: usize,
+    (before, after): (
+        impl Iterator<Item = (usize, usize)>,
+        impl Iterator<Item = (usize, usize)>,
+    ),
+    is_member: &impl Fn(usize) -> bool,
+) -> [(Real, usize); K] {
     let mut near = [(Real::INFINITY, usize::MAX); K];
     let Some(fi) = frames.get(i) else {
         return near;
     };
     let [u, v] = fi.px_t[0];
     let (u, v) = (u as Real, v as Real);
-    let visit = |j: usize, near: &mut [(Real, usize); K]| -> bool {
+    let visit = |(id, j): (usize, usize), near: &mut [(Real, usize); K]| -> bool {
         let Some(fj) = frames.get(j) else {
             return false;
         };
@@ -386,23 +523,24 @@ fn nearest<const K: usize>(
         if dv * dv > worst {
             return false;
         }
-        if is_member(j) {
-            // Insertion into the sorted list of the nearest so far.
-            let mut entry = (du * du + dv * dv, j);
+        let d = du * du + dv * dv;
+        // Insertion into the sorted list of the nearest so far; one not nearer than the
+        // last moves nothing. By selects: where it lands is a coin flip.
+        if d < worst && is_member(j) {
+            let mut entry = (d, id);
             for slot in near.iter_mut() {
-                if entry.0 < slot.0 {
-                    core::mem::swap(slot, &mut entry);
-                }
+                let nearer = entry.0 < slot.0;
+                (*slot, entry) = select_unpredictable(nearer, (entry, *slot), (*slot, entry));
             }
         }
         true
     };
-    for j in (0..i).rev() {
+    for j in before {
         if !visit(j, &mut near) {
             break;
         }
     }
-    for j in i + 1..frames.len() {
+    for j in after {
         if !visit(j, &mut near) {
             break;
         }
@@ -560,6 +698,49 @@ mod tests {
             Translation3::new(dx_m, 0.0, 0.0),
             UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw_deg.to_radians()),
         )
+    }
+
+    proptest::proptest! {
+        /// With frames in row order, the listed neighbour search and coherence test
+        /// ([`nearest_listed`], [`coherence_listed`]) give what the walks over all frames
+        /// give, bit for bit, and the coherence test leaves `side` as it found it. Pixels
+        /// sit on a coarse lattice so that ties in distance are common.
+        #[test]
+        fn listed_searches_equal_the_walks_over_all_frames(
+            cells in proptest::collection::vec((0u32..30, 0u32..30, 0u16..3, 0u32..2), 1..300),
+        ) {
+            let mut cells = cells;
+            cells.sort_by_key(|c| c.1);
+            let frames: std::vec::Vec<BodyFrame> = cells
+                .iter()
+                .map(|&(u, v, _, _)| BodyFrame {
+                    px_t: [[u * 4, v * 4]; 3],
+                    ..BodyFrame::EMPTY
+                })
+                .collect();
+            let group: std::vec::Vec<u16> = cells.iter().map(|c| c.2).collect();
+            let is_member = |i: usize| group.get(i) == Some(&1);
+            let members: std::vec::Vec<u32> = (0..frames.len())
+                .filter(|&i| is_member(i))
+                .map(|i| i as u32)
+                .collect();
+            for (p, &i) in members.iter().enumerate() {
+                let walk = nearest::<SMOOTH_NEIGHBOURS>(&frames, &is_member, i as usize);
+                let listed = nearest_listed::<SMOOTH_NEIGHBOURS>(&frames, &members, 0, p)
+                    .map(|(d, q)| (d, members.get(q).map_or(usize::MAX, |&j| j as usize)));
+                proptest::prop_assert_eq!(walk, listed, "frame {}", i);
+            }
+            let side: std::vec::Vec<u32> = cells
+                .iter()
+                .enumerate()
+                .map(|(i, c)| if is_member(i) { c.3 } else { 0 })
+                .collect();
+            let mut listed_side = side.clone();
+            let want = coherence(&frames, &is_member, &side);
+            let got = coherence_listed(&frames, &is_member, &mut listed_side);
+            proptest::prop_assert_eq!(want.to_bits(), got.to_bits());
+            proptest::prop_assert_eq!(side, listed_side);
+        }
     }
 
     #[test]

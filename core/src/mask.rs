@@ -860,38 +860,69 @@ fn splat(
         ) else {
             continue;
         };
-        for (x, ((&label, &z), &[dx, dy])) in labels.iter().zip(depths).zip(flows).enumerate() {
-            if label == 0 {
+        // Most of the image is background at `t`: skip it a chunk at a time (the test
+        // vectorises).
+        for (c, labels) in labels.chunks(SPLAT_CHUNK).enumerate() {
+            if labels.iter().fold(0, |any, &l| any | l) == 0 {
                 continue;
             }
-            let Some(z) = valid_depth(z) else {
-                continue;
-            };
-            let (u, v) = (round(x as Real + dx), round(y as Real + dy));
-            if !(u >= 0.0 && v >= 0.0 && u < width as Real && v < height as Real) {
-                continue;
-            }
-            let (Some(wx), Some(wy)) = (
-                (u as usize)
-                    .checked_sub(grid.x0)
-                    .filter(|&wx| wx < grid.width),
-                (v as usize)
-                    .checked_sub(grid.y0)
-                    .filter(|&wy| wy < grid.height),
+            let x0 = c * SPLAT_CHUNK;
+            let (Some(depths), Some(flows)) = (
+                depths.get(x0..x0 + labels.len()),
+                flows.get(x0..x0 + labels.len()),
             ) else {
                 continue;
             };
-            let i = wy * grid.width + wx;
-            if let (Some(d), Some(s), Some(c)) =
-                (depth_bits.get_mut(i), source.get_mut(i), carried.get_mut(i))
-                && z.to_bits() < *d
-            {
-                *d = z.to_bits();
-                *s = Grid::pack(x, y);
-                *c = label;
+            for (x, ((&label, &z), &[dx, dy])) in (x0..).zip(labels.iter().zip(depths).zip(flows)) {
+                if label == 0 {
+                    continue;
+                }
+                let Some(z) = valid_depth(z) else {
+                    continue;
+                };
+                let (Some(u), Some(v)) = (
+                    round_index(x as Real + dx, width),
+                    round_index(y as Real + dy, height),
+                ) else {
+                    continue;
+                };
+                let (Some(wx), Some(wy)) = (
+                    u.checked_sub(grid.x0).filter(|&wx| wx < grid.width),
+                    v.checked_sub(grid.y0).filter(|&wy| wy < grid.height),
+                ) else {
+                    continue;
+                };
+                let i = wy * grid.width + wx;
+                if let (Some(d), Some(s), Some(c)) =
+                    (depth_bits.get_mut(i), source.get_mut(i), carried.get_mut(i))
+                    && z.to_bits() < *d
+                {
+                    *d = z.to_bits();
+                    *s = Grid::pack(x, y);
+                    *c = label;
+                }
             }
         }
     }
+}
+
+/// Pixels of a label row [`splat`] skips at once when all are background.
+const SPLAT_CHUNK: usize = 16;
+
+/// `round(v)` as an index if it lies in `0..limit` (`limit` at most [`MAX_SIDE_PX`]), in
+/// integers: the same test as `round(v) >= 0.0 && round(v) < limit as Real` (a test
+/// checks), without the saturating float-to-integer conversions.
+#[inline]
+fn round_index(v: Real, limit: usize) -> Option<usize> {
+    // Beyond 2^23 (or NaN) `round` returns `v`, outside `0..limit` (limit < 2^23).
+    if !(v.abs() < 8_388_608.0) {
+        return None;
+    }
+    // Exact: |v| < 2^23 fits i32, and v minus its truncation is representable.
+    let t = v as i32;
+    let rest = v - t as Real;
+    let r = t + i32::from(rest >= 0.5) - i32::from(rest <= -0.5);
+    usize::try_from(r).ok().filter(|&r| r < limit)
 }
 
 /// 4-connected components of equal non-zero `key`, then components smaller than `min_px`
@@ -1754,6 +1785,60 @@ mod tests {
             );
             proptest::prop_assert_eq!(a, b);
             proptest::prop_assert_eq!(windowed, whole);
+        }
+    }
+
+    /// The splat's target test in integers equals the float one it replaced.
+    fn round_index_matches_round(v: Real, limit: usize) {
+        let u = round(v);
+        let expected = (u >= 0.0 && u < limit as Real).then_some(u as usize);
+        assert_eq!(round_index(v, limit), expected, "{v:?} in 0..{limit}");
+    }
+
+    #[test]
+    fn round_index_is_round_and_the_bounds_test() {
+        let edges = [
+            0.0,
+            -0.0,
+            0.49999997,
+            0.5,
+            -0.49999997,
+            -0.5,
+            -0.50000006,
+            0.50000006,
+            1.5,
+            2.5,
+            -1.5,
+            639.4,
+            639.5,
+            639.49997,
+            640.0,
+            65_534.5,
+            65_535.0,
+            8_388_607.5,
+            8_388_608.0,
+            -8_388_608.0,
+            1e30,
+            -1e30,
+            Real::INFINITY,
+            Real::NEG_INFINITY,
+            Real::NAN,
+            Real::MIN_POSITIVE,
+            -Real::MIN_POSITIVE,
+            1e-45,
+            -1e-45,
+        ];
+        for limit in [0, 1, 640, MAX_SIDE_PX] {
+            for &v in &edges {
+                round_index_matches_round(v, limit);
+                round_index_matches_round(-v, limit);
+            }
+        }
+        let mut rng = crate::rng::Pcg32::new(7);
+        for _ in 0..200_000 {
+            let v = 700.0 * rng.unit() - 30.0;
+            round_index_matches_round(v, 640);
+            round_index_matches_round(f32::from_bits(rng.below(u32::MAX)), 640);
         }
     }
 

@@ -958,25 +958,30 @@ fn label_segments(
     for y in 0..grid.height {
         let row = y * width;
         let (above, here) = segment.split_at_mut(row);
-        let above = above.get(row.saturating_sub(width)..).filter(|_| y > 0);
         let (Some(here), Some(keys)) = (here.get_mut(..width), key.get(row..row + width)) else {
             break;
         };
-        let keys_above = key.get(row.saturating_sub(width)..row).filter(|_| y > 0);
+        // The row above; the first row has none (its own keys stand in, unread).
+        let has_above = y > 0;
+        let (above, keys_above) = if has_above {
+            let (Some(a), Some(ka)) = (above.get(row - width..), key.get(row - width..row)) else {
+                break;
+            };
+            (&*a, ka)
+        } else {
+            (keys, keys)
+        };
         let mut left = (0u32, 0u32); // (key, provisional label) of the pixel to the left
         // The label above last united with (or taken by) the current run: runs above
         // repeat one label over many pixels, so each pair of runs unites once.
         let mut joined_up = 0u32;
-        for (x, (l, &k)) in here.iter_mut().zip(keys).enumerate() {
+        for ((l, &k), (&ka, &la)) in here.iter_mut().zip(keys).zip(keys_above.iter().zip(above)) {
             if k == 0 {
                 *l = 0;
                 left = (0, 0);
                 continue;
             }
-            let up = match (keys_above, above) {
-                (Some(ka), Some(la)) if ka.get(x) == Some(&k) => la.get(x).copied().unwrap_or(0),
-                _ => 0,
-            };
+            let up = if has_above && ka == k { la } else { 0 };
             let label = if left.0 == k {
                 if up != 0 && up != left.1 && up != joined_up {
                     union(parent, left.1 as usize - 1, up as usize - 1);
@@ -1021,16 +1026,33 @@ fn label_segments(
     for t in segs.size.iter_mut().take(count + 1) {
         *t = 0;
     }
+    // Final ids, sizes and keys, a run of equal labels at a time (a component's pixels
+    // all hold its key).
+    let (mut last, mut id) = (0u32, 0u32);
+    let mut run = 0u32;
     for (s, &k) in segment.iter_mut().zip(key) {
-        if *s != 0 {
-            *s = parent.get(*s as usize - 1).copied().unwrap_or(0);
-            if let Some(size) = segs.size.get_mut(*s as usize) {
-                *size += 1;
+        if *s != last {
+            last = *s;
+            if let Some(size) = segs.size.get_mut(id as usize) {
+                *size += run;
             }
-            if let Some(kk) = segs.key.get_mut(*s as usize) {
+            run = 0;
+            id = match last.checked_sub(1) {
+                Some(l) => parent.get(l as usize).copied().unwrap_or(0),
+                None => 0,
+            };
+            if let (true, Some(kk)) = (id != 0, segs.key.get_mut(id as usize)) {
                 *kk = k;
             }
         }
+        *s = id;
+        run += 1;
+    }
+    if let Some(size) = segs.size.get_mut(id as usize) {
+        *size += run;
+    }
+    if let Some(size) = segs.size.get_mut(0) {
+        *size = 0;
     }
     join_small_segments(grid, segment, count, min_px, segs);
     Ok(count)
@@ -1052,32 +1074,43 @@ fn join_small_segments(
     let target = segs.target.get_mut(..=count).unwrap_or(&mut []);
     target.fill(NONE);
     let ranked = |s: u32| (sizes.get(s as usize).copied().unwrap_or(0), s);
-    let mut offer = |a: u32, b: u32| {
-        for (small, big) in [(a, b), (b, a)] {
-            if ranked(small).0 >= min_px || ranked(big) <= ranked(small) {
-                continue;
-            }
-            if let Some(t) = target.get_mut(small as usize)
-                && (*t == NONE || ranked(big) > ranked(*t))
-            {
-                *t = big;
-            }
+    // Each small component's target is its largest-ranked larger neighbour: a maximum,
+    // so only the pixels of small components need looking at, in any order.
+    let mut offer = |small: u32, big: u32| {
+        if big == small || big == 0 || ranked(big) <= ranked(small) {
+            return;
+        }
+        if let Some(t) = target.get_mut(small as usize)
+            && (*t == NONE || ranked(big) > ranked(*t))
+        {
+            *t = big;
         }
     };
     let width = grid.width.max(1);
+    let len = segment.len();
+    let (mut last, mut small) = (0u32, false);
     for (y, row) in segment.chunks(width).enumerate() {
-        for pair in row.windows(2) {
-            if let [a, b] = *pair
-                && a != b
-                && a != 0
-                && b != 0
-            {
-                offer(a, b);
+        // Vertical pairs only between whole rows.
+        let whole = row.len() == width;
+        let up = y > 0 && whole;
+        let down = whole && (y + 2) * width <= len;
+        for (x, &a) in row.iter().enumerate() {
+            if a != last {
+                last = a;
+                small = a != 0 && ranked(a).0 < min_px;
             }
-        }
-        if let Some(below) = segment.get((y + 1) * width..(y + 2) * width) {
-            for (&a, &b) in row.iter().zip(below) {
-                if a != b && a != 0 && b != 0 {
+            if !small {
+                continue;
+            }
+            let i = y * width + x;
+            let near = [
+                (x > 0).then(|| i - 1),
+                (x + 1 < row.len()).then_some(i + 1),
+                up.then(|| i - width),
+                down.then_some(i + width),
+            ];
+            for j in near.into_iter().flatten() {
+                if let Some(&b) = segment.get(j) {
                     offer(a, b);
                 }
             }
@@ -1100,10 +1133,13 @@ fn join_small_segments(
             *t = id;
         }
     }
+    let (mut last, mut into) = (0u32, 0u32);
     for s in segment.iter_mut() {
-        if let Some(&t) = target.get(*s as usize) {
-            *s = t;
+        if *s != last {
+            last = *s;
+            into = target.get(last as usize).copied().unwrap_or(last);
         }
+        *s = into;
     }
 }
 
@@ -1614,11 +1650,17 @@ mod tests {
 
     /// The flood fill `label_segments` replaced: components in scan order by breadth-first
     /// search, then each small component joins its largest (size, id) neighbour.
-    /// Returns the component count (before joining) and the segment ids.
-    fn flood_fill_reference(width: usize, key: &[u32], min_px: u32) -> (usize, Vec<u32>) {
+    /// Returns the component count (before joining), the segment ids, and each
+    /// component's size and key (index 0 unused).
+    fn flood_fill_reference(
+        width: usize,
+        key: &[u32],
+        min_px: u32,
+    ) -> (usize, Vec<u32>, Vec<u32>, Vec<u32>) {
         let height = key.len() / width;
         let mut segment = vec![0u32; key.len()];
         let mut size = vec![0u32; 1];
+        let mut keys = vec![0u32; 1];
         for start in 0..key.len() {
             if key[start] == 0 || segment[start] != 0 {
                 continue;
@@ -1652,6 +1694,7 @@ mod tests {
                 }
             }
             size.push(queue.len() as u32);
+            keys.push(key[start]);
         }
         let ranked = |s: u32| (size[s as usize], s);
         let mut target: Vec<Option<u32>> = vec![None; size.len()];
@@ -1682,7 +1725,7 @@ mod tests {
                 id
             })
             .collect();
-        (size.len() - 1, joined)
+        (size.len() - 1, joined, size, keys)
     }
 
     proptest::proptest! {
@@ -1703,9 +1746,11 @@ mod tests {
             let count =
                 label_segments(Grid::whole(width, height), key, min_px, &mut segment, &mut queue, &mut segs)
                     .unwrap();
-            let (expected_count, expected) = flood_fill_reference(width, key, min_px);
+            let (expected_count, expected, sizes, keys) = flood_fill_reference(width, key, min_px);
             proptest::prop_assert_eq!(count, expected_count);
             proptest::prop_assert_eq!(&segment, &expected);
+            proptest::prop_assert_eq!(&segs.size[1..=count], &sizes[1..]);
+            proptest::prop_assert_eq!(&segs.key[1..=count], &keys[1..]);
         }
     }
 

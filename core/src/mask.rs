@@ -296,27 +296,38 @@ fn correct_mask_in(
     let (next, split_segments) = label_split_segments(seeds, count)?;
     let mut entries = SegmentEntries::new(seeds);
     let window_labels = &mut labels_t1[..m];
-    for ((out, &seg), &c) in window_labels
-        .iter_mut()
-        .zip(segment.iter())
-        .zip(claim.iter())
+    let row_len = grid.width.max(1);
+    // Runs of pixels repeat one (segment, claim): look its label up once per run.
+    let mut run = (0u32, 0u16, 0u16);
+    for (y, ((out_row, seg_row), (claim_row, key_row))) in window_labels
+        .chunks_mut(row_len)
+        .zip(segment.chunks(row_len))
+        .zip(claim.chunks(row_len).zip(key.chunks_mut(row_len)))
+        .enumerate()
     {
-        *out = seg as u16;
-        if c != 0 {
-            let g = u32::from(c - 1);
-            if let Some(entry) = entries.of(seg).iter().find(|s| s.group == g) {
-                *out = entry.label as u16;
+        let static_row = grid.static_row(static_t1, y);
+        for (x, ((out, &seg), (&c, k))) in out_row
+            .iter_mut()
+            .zip(seg_row)
+            .zip(claim_row.iter().zip(key_row.iter_mut()))
+            .enumerate()
+        {
+            if (seg, c) != (run.0, run.1) {
+                let mut label = seg as u16;
+                if c != 0 {
+                    let g = u32::from(c - 1);
+                    if let Some(entry) = entries.of(seg).iter().find(|s| s.group == g) {
+                        label = entry.label as u16;
+                    }
+                }
+                run = (seg, c, label);
             }
-        }
-    }
-    // The static label of each segment (segments never span two static segments: step 2
-    // keys by the static label and absorbs fragments only within their static segment).
-    for (seg_row, static_row) in segment
-        .chunks(grid.width.max(1))
-        .zip((0..grid.height).map(|y| grid.static_row(static_t1, y)))
-    {
-        for (&seg, &st) in seg_row.iter().zip(static_row) {
-            if let Some(slot) = segs.key.get_mut(seg as usize) {
+            *out = run.2;
+            *k = u32::from(run.2);
+            // The static label of each segment (segments never span two static segments:
+            // step 2 keys by the static label and absorbs fragments only within their
+            // static segment).
+            if let (Some(slot), Some(&st)) = (segs.key.get_mut(seg as usize), static_row.get(x)) {
                 *slot = u32::from(st);
             }
         }
@@ -330,8 +341,10 @@ fn correct_mask_in(
         segs.target,
         window_labels,
     );
-    for (k, &l) in key.iter_mut().zip(window_labels.iter()) {
-        *k = u32::from(l);
+    if merged_segments > 0 {
+        for (k, &l) in key.iter_mut().zip(window_labels.iter()) {
+            *k = u32::from(l);
+        }
     }
     label_segments(grid, key, cfg.min_segment_px, segment, queue, &mut segs)?;
     let mut max_label = 0;

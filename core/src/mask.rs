@@ -54,7 +54,7 @@ use crate::{
     error::{Buffer, check_len},
     frames::{BodyFrame, MotionInput},
     group::GroupInfo,
-    image::valid_depth,
+    image::{MAX_DEPTH_M, valid_depth},
     math::{Real, round},
     se3::fit_rigid_motion,
     union_find::{find, union},
@@ -850,7 +850,10 @@ struct Segments<'a> {
 
 /// Forward splat into the window `grid` (targets outside it are never read).
 /// `depth_bits` holds the winning depth's `f32` bits: for positive floats the bit patterns
-/// order like the values, so `u32` comparison is depth comparison.
+/// order like the values, so `u32` comparison is depth comparison. Pixels go in scan
+/// order (on equal depth the first wins), eight at a time where labels are not all
+/// background: their targets are computed side by side ([`SplatTarget::eight`], equal to
+/// [`SplatTarget::pixel`] on each; a test checks), then written one by one in order.
 fn splat(
     input: &MotionInput<'_>,
     grid: Grid,
@@ -865,6 +868,13 @@ fn splat(
     if grid.width == 0 {
         return;
     }
+    let mut target = SplatTarget {
+        grid,
+        size: (width, height),
+        depth_bits,
+        source,
+        carried,
+    };
     for y in 0..height {
         let (Some(labels), Some(depths), Some(flows)) = (
             input.labels_t.row(y),
@@ -886,34 +896,24 @@ fn splat(
             ) else {
                 continue;
             };
-            for (x, ((&label, &z), &[dx, dy])) in (x0..).zip(labels.iter().zip(depths).zip(flows)) {
-                if label == 0 {
-                    continue;
-                }
-                let Some(z) = valid_depth(z) else {
-                    continue;
-                };
-                let (Some(u), Some(v)) = (
-                    round_index(x as Real + dx, width),
-                    round_index(y as Real + dy, height),
-                ) else {
-                    continue;
-                };
-                let (Some(wx), Some(wy)) = (
-                    u.checked_sub(grid.x0).filter(|&wx| wx < grid.width),
-                    v.checked_sub(grid.y0).filter(|&wy| wy < grid.height),
-                ) else {
-                    continue;
-                };
-                let i = wy * grid.width + wx;
-                if let (Some(d), Some(s), Some(c)) =
-                    (depth_bits.get_mut(i), source.get_mut(i), carried.get_mut(i))
-                    && z.to_bits() < *d
+            let mut x = x0;
+            for ((labels, depths), flows) in labels
+                .chunks(SPLAT_LANES)
+                .zip(depths.chunks(SPLAT_LANES))
+                .zip(flows.chunks(SPLAT_LANES))
+            {
+                if let (Ok(l), Ok(d), Ok(f)) =
+                    (labels.try_into(), depths.try_into(), flows.try_into())
                 {
-                    *d = z.to_bits();
-                    *s = Grid::pack(x, y);
-                    *c = label;
+                    target.eight(x, y, l, d, f);
+                } else {
+                    for (i, ((&label, &z), &flow)) in
+                        labels.iter().zip(depths).zip(flows).enumerate()
+                    {
+                        target.pixel(x + i, y, label, z, flow);
+                    }
                 }
+                x += SPLAT_LANES;
             }
         }
     }
@@ -921,6 +921,123 @@ fn splat(
 
 /// Pixels of a label row [`splat`] skips at once when all are background.
 const SPLAT_CHUNK: usize = 16;
+
+/// Pixels whose splat targets are computed side by side.
+const SPLAT_LANES: usize = 8;
+
+/// What [`splat`] writes: the window and its per-pixel maps.
+struct SplatTarget<'a> {
+    grid: Grid,
+    /// Image size.
+    size: (usize, usize),
+    depth_bits: &'a mut [u32],
+    source: &'a mut [u32],
+    carried: &'a mut [u16],
+}
+
+impl SplatTarget<'_> {
+    /// Carries `label` from image pixel `(x, y)` at depth `z` to window pixel `(wx, wy)`
+    /// if it is nearer than what landed there before.
+    #[inline]
+    fn put(&mut self, (wx, wy): (usize, usize), (x, y): (usize, usize), label: u16, z: Real) {
+        let i = wy * self.grid.width + wx;
+        if let (Some(d), Some(s), Some(c)) = (
+            self.depth_bits.get_mut(i),
+            self.source.get_mut(i),
+            self.carried.get_mut(i),
+        ) && z.to_bits() < *d
+        {
+            *d = z.to_bits();
+            *s = Grid::pack(x, y);
+            *c = label;
+        }
+    }
+
+    /// One pixel: a labelled pixel with a depth reading goes to its rounded flow target,
+    /// if that lies in the window.
+    #[inline]
+    fn pixel(&mut self, x: usize, y: usize, label: u16, z: Real, [dx, dy]: [Real; 2]) {
+        if label == 0 {
+            return;
+        }
+        let Some(z) = valid_depth(z) else {
+            return;
+        };
+        let (width, height) = self.size;
+        let (Some(u), Some(v)) = (
+            round_index(x as Real + dx, width),
+            round_index(y as Real + dy, height),
+        ) else {
+            return;
+        };
+        let (Some(wx), Some(wy)) = (
+            u.checked_sub(self.grid.x0)
+                .filter(|&wx| wx < self.grid.width),
+            v.checked_sub(self.grid.y0)
+                .filter(|&wy| wy < self.grid.height),
+        ) else {
+            return;
+        };
+        self.put((wx, wy), (x, y), label, z);
+    }
+
+    /// [`SplatTarget::pixel`] on pixels `x0..x0 + 8` of row `y`, in order, with the
+    /// targets computed side by side in floats: the same sums, and the rounding and
+    /// bounds of [`round_index`] on exact integers below 2^24.
+    fn eight(
+        &mut self,
+        x0: usize,
+        y: usize,
+        labels: &[u16; SPLAT_LANES],
+        depths: &[Real; SPLAT_LANES],
+        flows: &[[Real; 2]; SPLAT_LANES],
+    ) {
+        let z = f32x8::new(*depths);
+        // valid_depth: NaN fails both comparisons, infinities one.
+        let has_depth = z.simd_gt(f32x8::ZERO) & z.simd_le(f32x8::splat(MAX_DEPTH_M));
+        let xs = f32x8::new(core::array::from_fn(|l| (x0 + l) as Real));
+        let u = xs + f32x8::new(flows.map(|f| f[0]));
+        let v = f32x8::splat(y as Real) + f32x8::new(flows.map(|f| f[1]));
+        let (wx, in_x) = window_coordinate(u, self.grid.x0, self.grid.width);
+        let (wy, in_y) = window_coordinate(v, self.grid.y0, self.grid.height);
+        let mut lanes = (has_depth & in_x & in_y).to_bitmask();
+        if lanes == 0 {
+            return;
+        }
+        // Exact: the kept lanes hold integers in 0..65 535.
+        let (wx, wy) = (
+            wx.fast_trunc_int().to_array(),
+            wy.fast_trunc_int().to_array(),
+        );
+        while lanes != 0 {
+            let l = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            let (Some(&label), Some(&z), Some(&wx), Some(&wy)) =
+                (labels.get(l), depths.get(l), wx.get(l), wy.get(l))
+            else {
+                continue;
+            };
+            if label != 0 {
+                self.put((wx as usize, wy as usize), (x0 + l, y), label, z);
+            }
+        }
+    }
+}
+
+/// Per lane, `round(v) - origin` (as [`round_index`] rounds) and whether it lies in
+/// `0..len`: exact, since every term is an integer below 2^24 where it counts.
+#[inline]
+fn window_coordinate(v: f32x8, origin: usize, len: usize) -> (f32x8, f32x8) {
+    // Beyond 2^23 (or NaN) `round` returns `v`, outside the window.
+    let finite = v.abs().simd_lt(f32x8::splat(8_388_608.0));
+    let t = v.trunc();
+    let rest = v - t;
+    let r = t + (rest.simd_ge(f32x8::splat(0.5)) & f32x8::ONE)
+        - (rest.simd_le(f32x8::splat(-0.5)) & f32x8::ONE);
+    let w = r - f32x8::splat(origin as Real);
+    let inside = finite & w.simd_ge(f32x8::ZERO) & w.simd_lt(f32x8::splat(len as Real));
+    (w, inside)
+}
 
 /// `round(v)` as an index if it lies in `0..limit` (`limit` at most [`MAX_SIDE_PX`]), in
 /// integers: the same test as `round(v) >= 0.0 && round(v) < limit as Real` (a test
@@ -1843,6 +1960,69 @@ mod tests {
             );
             proptest::prop_assert_eq!(a, b);
             proptest::prop_assert_eq!(windowed, whole);
+        }
+    }
+
+    proptest::proptest! {
+        /// The splat eight pixels at a time carries exactly what carrying each pixel in
+        /// scan order carries: random labels, depths (invalid ones too), flows (half-pixel
+        /// ties, NaN, infinities, huge values), image widths (rows that end mid-chunk)
+        /// and windows.
+        #[test]
+        fn splat_lanes_carry_as_pixel_by_pixel(seed in proptest::prelude::any::<u64>()) {
+            use crate::{Intrinsics, rng::Pcg32};
+            let mut rng = Pcg32::new(seed);
+            let (w, h) = (1 + rng.below(50) as usize, 1 + rng.below(12) as usize);
+            let labels: Vec<u16> = (0..w * h)
+                .map(|_| if rng.below(3) == 0 { 0 } else { 1 + rng.below(4) as u16 })
+                .collect();
+            let special = [Real::NAN, Real::INFINITY, -Real::INFINITY, 0.0, -0.0, 1e30, -1e30, 150.0, -1.0];
+            let depth: Vec<Real> = (0..w * h)
+                .map(|_| match rng.below(8) {
+                    0 => special[rng.below(special.len() as u32) as usize],
+                    1 => 0.6,
+                    _ => 0.3 + rng.unit(),
+                })
+                .collect();
+            let coordinate = |rng: &mut Pcg32| match rng.below(10) {
+                0 => special[rng.below(special.len() as u32) as usize],
+                1 => rng.below(9) as Real * 0.5 - 2.0,
+                2 => 0.49999997 * if rng.below(2) == 0 { 1.0 } else { -1.0 },
+                _ => 8.0 * rng.unit() - 4.0,
+            };
+            let flow: Vec<[Real; 2]> = (0..w * h).map(|_| [coordinate(&mut rng), coordinate(&mut rng)]).collect();
+            let input = MotionInput::new(
+                ImageView::packed(w, h, &labels).unwrap(),
+                ImageView::packed(w, h, &depth).unwrap(),
+                ImageView::packed(w, h, &depth).unwrap(),
+                ImageView::packed(w, h, &flow).unwrap(),
+                Intrinsics::new(60.0, 60.0, w as Real / 2.0, h as Real / 2.0).unwrap(),
+            )
+            .unwrap();
+            let (x0, y0) = (rng.below(w as u32) as usize, rng.below(h as u32) as usize);
+            let grid = Grid {
+                x0,
+                y0,
+                width: 1 + rng.below((w - x0) as u32) as usize,
+                height: 1 + rng.below((h - y0) as u32) as usize,
+            };
+            let m = grid.width * grid.height;
+            let (mut bits, mut source, mut carried) = (vec![0u32; m], vec![0u32; m], vec![7u16; m]);
+            splat(&input, grid, &mut bits, &mut source, &mut carried);
+            let (mut bits_1, mut source_1, mut carried_1) = (vec![u32::MAX; m], vec![NONE; m], vec![0u16; m]);
+            let mut one = SplatTarget {
+                grid,
+                size: (w, h),
+                depth_bits: &mut bits_1,
+                source: &mut source_1,
+                carried: &mut carried_1,
+            };
+            for i in 0..w * h {
+                one.pixel(i % w, i / w, labels[i], depth[i], flow[i]);
+            }
+            proptest::prop_assert_eq!(bits, bits_1);
+            proptest::prop_assert_eq!(source, source_1);
+            proptest::prop_assert_eq!(carried, carried_1);
         }
     }
 

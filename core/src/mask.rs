@@ -1045,7 +1045,7 @@ fn window_coordinate(v: f32x8, origin: usize, len: usize) -> (f32x8, f32x8) {
 #[inline]
 fn round_index(v: Real, limit: usize) -> Option<usize> {
     // Beyond 2^23 (or NaN) `round` returns `v`, outside `0..limit` (limit < 2^23).
-    if !(v.abs() < 8_388_608.0) {
+    if v.is_nan() || v.abs() >= 8_388_608.0 {
         return None;
     }
     // Exact: |v| < 2^23 fits i32, and v minus its truncation is representable.
@@ -1097,7 +1097,7 @@ fn label_segments(
             let (Some(a), Some(ka)) = (above.get(row - width..), key.get(row - width..row)) else {
                 break;
             };
-            (&*a, ka)
+            (a, ka)
         } else {
             (keys, keys)
         };
@@ -2049,7 +2049,7 @@ mod tests {
             -1.5,
             639.4,
             639.5,
-            639.49997,
+            Real::from_bits(639.5_f32.to_bits() - 1),
             640.0,
             65_534.5,
             65_535.0,

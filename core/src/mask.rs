@@ -573,6 +573,10 @@ fn grow_regions(
             }
         }
     }
+    if tail == 0 {
+        // No split segment: nothing grows.
+        return;
+    }
     // Each pixel's best explaining group, computed for every pixel of a split segment
     // before growing, eight pixels at a time: key holds HOLE (no observation: any region
     // may pass) or group + 1 (0: no group within tolerance). Growth reaches nearly all of

@@ -16,17 +16,19 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use riseg::{
-    cli::{config::Settings, models::Models},
     eval::ceiling::{
         CeilingFrame, CeilingParams, MotionCeiling, motion_gaps, same_motion, static_segments,
         touching_pairs,
     },
     eval::metrics::image_metrics,
     io::scene::ObjectPose,
-    rig::episode::run_episode,
-    sim::{Layout, SimConfig, SimRig, SimScene},
+    sim::Layout,
 };
 use riseg_core::Pose;
+
+#[path = "support/sim_episode.rs"]
+mod sim_episode;
+use sim_episode::run_sim_episode;
 
 /// One captured frame, as far as the diagnosis needs it.
 struct Frame {
@@ -117,50 +119,40 @@ fn main() -> anyhow::Result<()> {
 
 fn scene(seed: u64, layout: Layout) -> anyhow::Result<()> {
     println!("######## sim seed {seed} ({layout})");
-    let sim = SimScene::with_config(seed, SimConfig::D415.with_layout(layout))?;
-    let mut rig = SimRig::new(sim);
-    let settings = Settings::default();
-    let mut tracker = Models::default().tracker(&settings, Some(1))?;
     let mut frames: Vec<Frame> = Vec::new();
     let (mut width, mut height) = (0, 0);
-    run_episode(
-        &mut rig.camera,
-        &mut rig.robot,
-        &mut tracker,
-        &rig.setup,
-        |f| {
-            (width, height) = f.frame.size();
-            let truth = f.frame.truth.as_ref().ok_or("truth")?.as_slice().to_vec();
-            let pose_list = f.frame.truth_poses.clone().ok_or("poses")?;
-            let poses = pose_list
-                .iter()
-                .map(|p| (p.label, p.world_from_object))
-                .collect();
-            let mut groups: BTreeMap<u16, BTreeMap<(Option<u16>, bool), usize>> = BTreeMap::new();
-            if let (Some(step), Some(prev)) = (&f.observation.step, frames.last()) {
-                for g in &step.frames {
-                    let [u, v] = g.frame.px_t[0];
-                    let l = prev.truth[v as usize * width + u as usize];
-                    if l != 0 {
-                        *groups
-                            .entry(l)
-                            .or_default()
-                            .entry((g.group, g.moving))
-                            .or_default() += 1;
-                    }
+    run_sim_episode(seed, layout, |f| {
+        (width, height) = f.frame.size();
+        let truth = f.frame.truth.as_ref().ok_or("truth")?.as_slice().to_vec();
+        let pose_list = f.frame.truth_poses.clone().ok_or("poses")?;
+        let poses = pose_list
+            .iter()
+            .map(|p| (p.label, p.world_from_object))
+            .collect();
+        let mut groups: BTreeMap<u16, BTreeMap<(Option<u16>, bool), usize>> = BTreeMap::new();
+        if let (Some(step), Some(prev)) = (&f.observation.step, frames.last()) {
+            for g in &step.frames {
+                let [u, v] = g.frame.px_t[0];
+                let l = prev.truth[v as usize * width + u as usize];
+                if l != 0 {
+                    *groups
+                        .entry(l)
+                        .or_default()
+                        .entry((g.group, g.moving))
+                        .or_default() += 1;
                 }
             }
-            frames.push(Frame {
-                truth,
-                static_labels: f.observation.static_seg.labels.as_slice().to_vec(),
-                mask: f.observation.mask.clone(),
-                poses,
-                pose_list,
-                groups,
-            });
-            Ok(())
-        },
-    )?;
+        }
+        frames.push(Frame {
+            truth,
+            static_labels: f.observation.static_seg.labels.as_slice().to_vec(),
+            mask: f.observation.mask.clone(),
+            poses,
+            pose_list,
+            groups,
+        });
+        Ok(())
+    })?;
 
     let floors = [
         ("1mm/1.5deg", 0.001, 1.5_f32),

@@ -10,13 +10,16 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use riseg::{
-    cli::{config::Settings, models::Models},
     eval::ceiling::{CeilingFrame, CeilingParams, MotionCeiling, moved},
     io::scene::ObjectPose,
-    rig::episode::{Decision, run_episode},
-    sim::{Layout, SimConfig, SimRig, SimScene},
+    rig::episode::Decision,
+    sim::Layout,
 };
 use riseg_core::Pose;
+
+#[path = "support/sim_episode.rs"]
+mod sim_episode;
+use sim_episode::run_sim_episode;
 
 struct Frame {
     truth: Vec<u16>,
@@ -156,59 +159,49 @@ fn dump_frame(
 }
 
 fn scene(seed: u64, layout: Layout, dump: Option<&str>) -> anyhow::Result<()> {
-    let sim = SimScene::with_config(seed, SimConfig::D415.with_layout(layout))?;
-    let mut rig = SimRig::new(sim);
-    let settings = Settings::default();
-    let mut tracker = Models::default().tracker(&settings, Some(1))?;
     let mut frames: Vec<Frame> = Vec::new();
     let (mut width, mut height) = (0, 0);
-    run_episode(
-        &mut rig.camera,
-        &mut rig.robot,
-        &mut tracker,
-        &rig.setup,
-        |f| {
-            (width, height) = f.frame.size();
-            let (w, h) = (width, height);
-            let truth = f.frame.truth.as_ref().ok_or("truth")?.as_slice().to_vec();
-            let pose_list = f.frame.truth_poses.clone().ok_or("poses")?;
-            let poses = pose_list
-                .iter()
-                .map(|p| (p.label, p.world_from_object))
-                .collect();
-            let clusters = f
-                .action
-                .certain()
-                .iter()
-                .map(|c| {
-                    (
-                        at(&truth, w, h, c.centre_px),
-                        at(&f.observation.mask, w, h, c.centre_px),
-                        c.samples,
-                    )
-                })
-                .collect();
-            let push = match (f.decision, f.action.pair()) {
-                (Decision::Push { push, .. }, Some(pair)) => {
-                    Some((pair.pushed, pair.other, push.start_px, push.target_px))
-                }
-                _ => None,
-            };
-            let heat = f.observation.static_seg.heatmap.as_slice().to_vec();
-            let centres = f.action.certain().iter().map(|c| c.centre_px).collect();
-            frames.push(Frame {
-                heat,
-                centres,
-                truth,
-                static_labels: f.observation.static_seg.labels.as_slice().to_vec(),
-                poses,
-                pose_list,
-                clusters,
-                push,
-            });
-            Ok(())
-        },
-    )?;
+    run_sim_episode(seed, layout, |f| {
+        (width, height) = f.frame.size();
+        let (w, h) = (width, height);
+        let truth = f.frame.truth.as_ref().ok_or("truth")?.as_slice().to_vec();
+        let pose_list = f.frame.truth_poses.clone().ok_or("poses")?;
+        let poses = pose_list
+            .iter()
+            .map(|p| (p.label, p.world_from_object))
+            .collect();
+        let clusters = f
+            .action
+            .certain()
+            .iter()
+            .map(|c| {
+                (
+                    at(&truth, w, h, c.centre_px),
+                    at(&f.observation.mask, w, h, c.centre_px),
+                    c.samples,
+                )
+            })
+            .collect();
+        let push = match (f.decision, f.action.pair()) {
+            (Decision::Push { push, .. }, Some(pair)) => {
+                Some((pair.pushed, pair.other, push.start_px, push.target_px))
+            }
+            _ => None,
+        };
+        let heat = f.observation.static_seg.heatmap.as_slice().to_vec();
+        let centres = f.action.certain().iter().map(|c| c.centre_px).collect();
+        frames.push(Frame {
+            heat,
+            centres,
+            truth,
+            static_labels: f.observation.static_seg.labels.as_slice().to_vec(),
+            poses,
+            pose_list,
+            clusters,
+            push,
+        });
+        Ok(())
+    })?;
     let params = CeilingParams::DEFAULT;
     let mut ceiling = MotionCeiling::new(params);
     let mut ceil_groups = Vec::new();

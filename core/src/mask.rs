@@ -1782,6 +1782,25 @@ mod tests {
         assert!(label_split_segments(&mut seeds, MAX_SEGMENTS - 1).is_ok());
     }
 
+    /// A step's input of `w × h` pixels whose depth is the same before and after, seen
+    /// through a 60 px focal length centred on the image.
+    fn still_input<'a>(
+        w: usize,
+        h: usize,
+        labels: &'a [u16],
+        depth: &'a [Real],
+        flow: &'a [[Real; 2]],
+    ) -> MotionInput<'a> {
+        MotionInput::new(
+            ImageView::packed(w, h, labels).unwrap(),
+            ImageView::packed(w, h, depth).unwrap(),
+            ImageView::packed(w, h, depth).unwrap(),
+            ImageView::packed(w, h, flow).unwrap(),
+            Intrinsics::new(60.0, 60.0, w as Real / 2.0, h as Real / 2.0).unwrap(),
+        )
+        .unwrap()
+    }
+
     /// The flood fill `label_segments` replaced: components in scan order by breadth-first
     /// search, then each small component joins its largest (size, id) neighbour.
     /// Returns the component count (before joining), the segment ids, and each
@@ -1895,7 +1914,7 @@ mod tests {
         /// from inside and outside the window, moving and still groups.
         #[test]
         fn the_foreground_window_changes_nothing(seed in proptest::prelude::any::<u64>()) {
-            use crate::{Intrinsics, Twist, group::GroupInfo, rng::Pcg32, test_workspace::WorkspaceBuf};
+            use crate::{Twist, group::GroupInfo, rng::Pcg32, test_workspace::WorkspaceBuf};
             let mut rng = Pcg32::new(seed);
             let (w, h) = (8 + rng.below(40) as usize, 6 + rng.below(30) as usize);
             // A block of objects somewhere in the image, each with a 2x2-pixel grain.
@@ -1920,14 +1939,7 @@ mod tests {
             let flow: Vec<[f32; 2]> = (0..w * h)
                 .map(|_| [4.0 * rng.unit() - 2.0, 4.0 * rng.unit() - 2.0])
                 .collect();
-            let input = MotionInput::new(
-                ImageView::packed(w, h, &labels_t).unwrap(),
-                ImageView::packed(w, h, &depth).unwrap(),
-                ImageView::packed(w, h, &depth).unwrap(),
-                ImageView::packed(w, h, &flow).unwrap(),
-                Intrinsics::new(60.0, 60.0, w as Real / 2.0, h as Real / 2.0).unwrap(),
-            )
-            .unwrap();
+            let input = still_input(w, h, &labels_t, &depth, &flow);
             let motions = [
                 Pose::from_parts(Translation3::new(0.004, 0.0, 0.0), nalgebra::UnitQuaternion::identity()),
                 Pose::from_parts(Translation3::new(0.0, -0.004, 0.001), nalgebra::UnitQuaternion::identity()),
@@ -1974,7 +1986,7 @@ mod tests {
         /// and windows.
         #[test]
         fn splat_lanes_carry_as_pixel_by_pixel(seed in proptest::prelude::any::<u64>()) {
-            use crate::{Intrinsics, rng::Pcg32};
+            use crate::rng::Pcg32;
             let mut rng = Pcg32::new(seed);
             let (w, h) = (1 + rng.below(50) as usize, 1 + rng.below(12) as usize);
             let labels: Vec<u16> = (0..w * h)
@@ -1995,14 +2007,7 @@ mod tests {
                 _ => 8.0 * rng.unit() - 4.0,
             };
             let flow: Vec<[Real; 2]> = (0..w * h).map(|_| [coordinate(&mut rng), coordinate(&mut rng)]).collect();
-            let input = MotionInput::new(
-                ImageView::packed(w, h, &labels).unwrap(),
-                ImageView::packed(w, h, &depth).unwrap(),
-                ImageView::packed(w, h, &depth).unwrap(),
-                ImageView::packed(w, h, &flow).unwrap(),
-                Intrinsics::new(60.0, 60.0, w as Real / 2.0, h as Real / 2.0).unwrap(),
-            )
-            .unwrap();
+            let input = still_input(w, h, &labels, &depth, &flow);
             let (x0, y0) = (rng.below(w as u32) as usize, rng.below(h as u32) as usize);
             let grid = Grid {
                 x0,

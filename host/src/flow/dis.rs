@@ -556,6 +556,8 @@ impl DisFlow {
             &self.flows,
         );
         self.flows.put(core::mem::replace(flow, dense));
+        // The refinement reads the unpadded image: its buffers may reuse this one.
+        pool.put(i1p.data);
         if step.variational_iters > 0 {
             let (gx1, gy1) = gradients(i1, w, h, pool);
             let second = Warpable::new(i1, &gx1, &gy1, (w, h), pool);
@@ -580,7 +582,6 @@ impl DisFlow {
             refine(&inp, flow, &settings, pool);
             second.recycle(pool);
         }
-        pool.put(i1p.data);
         pool.put(gx0);
         pool.put(gy0);
     }

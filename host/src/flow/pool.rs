@@ -46,7 +46,7 @@ impl<T: Copy + Default> Pool<T> {
         v
     }
 
-    /// A buffer of `len` zeros, reusing the smallest kept buffer that is large enough.
+    /// A buffer of `len` zeros, reusing a kept buffer with room if there is one.
     pub fn zeroed(&self, len: usize) -> Vec<T> {
         match self.take(len) {
             Some(mut v) => {
@@ -59,7 +59,7 @@ impl<T: Copy + Default> Pool<T> {
     }
 
     /// A buffer of `len` values of no particular content (the caller overwrites all of
-    /// them), reusing the smallest kept buffer that is large enough.
+    /// them), reusing a kept buffer with room if there is one ([`Pool::take`]).
     pub fn scratch(&self, len: usize) -> Vec<T> {
         match self.take(len) {
             Some(mut v) => {
@@ -71,14 +71,22 @@ impl<T: Copy + Default> Pool<T> {
         }
     }
 
-    /// The smallest kept buffer with room for `len` values, if any.
+    /// The kept buffer with room for `len` values that [`Pool::scratch`] fills least: the
+    /// shortest already holding `len` values (nothing to fill; call after call, each
+    /// buffer keeps one role), else the longest. `None` if no buffer has room.
     fn take(&self, len: usize) -> Option<Vec<T>> {
         let mut free = self.free.lock().unwrap_or_else(PoisonError::into_inner);
         let best = free
             .iter()
             .enumerate()
             .filter(|(_, v)| v.capacity() >= len)
-            .min_by_key(|(_, v)| v.capacity())
+            .min_by_key(|(_, v)| {
+                if v.len() >= len {
+                    (false, v.len())
+                } else {
+                    (true, usize::MAX - v.len())
+                }
+            })
             .map(|(i, _)| i);
         best.map(|i| free.swap_remove(i))
     }

@@ -7,6 +7,9 @@
 //! cargo run --release --example speed -- cycle /tmp/packed /tmp/loose --runs 15
 //! # How UpdateMask's stages grow with the image and the number of frames:
 //! cargo run --release --example speed -- scaling --runs 15
+//! # A one-shot `riseg flow` process against the warm estimate on one pair:
+//! cargo run --release --example speed -- oneshot target/release/riseg a.png b.png \
+//!     --out /tmp/f.flo --runs 15
 //! ```
 //!
 //! `cycle`: per dataset (its folder name is the case), the median over scenes of each
@@ -20,15 +23,24 @@
 //! `scaling`: UpdateMask stage by stage on [`SyntheticStep`] (touching boxes) at 320x240,
 //! 640x480 and 1280x720 with 250, 1000 and 4000 frame samples, one thread, and the bytes
 //! of riseg-core's workspace from [`WorkspaceLen::bytes`].
+//!
+//! `oneshot`: per thread count (1 and 2), the wall time of a whole `riseg flow FIRST SECOND
+//! -o OUT --threads N` process (spawn to exit, as a shell sees it) against the warm estimate
+//! on the same pair with the same thread count in this process: the built-in flow MEDIUM
+//! (`riseg flow`'s default preset) on an estimator that has run once, luma conversion
+//! included, as the CLI runs it; the images are read as the CLI reads them. The two are
+//! timed alternately, one of each per run, so that load on the machine shifts both alike;
+//! the medians are reported.
 
 use std::path::{Path, PathBuf};
+use std::process::Command;
 use std::time::Instant;
 
 use anyhow::{Context as _, Result, bail};
 use clap::{Parser, Subcommand};
 use riseg::{
     flow::{DisFlow, FlowEstimator as _, FlowParams},
-    io::scene::Scene,
+    io::{image::read_png_as_rgb8, scene::Scene},
     rig::workspace::{ActionBuf, WorkspaceBuf},
     segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams, StaticSegmenter as _},
     testkit::SyntheticStep,
@@ -58,6 +70,18 @@ enum What {
     },
     /// UpdateMask's stages at three image sizes and three frame counts.
     Scaling,
+    /// A one-shot `riseg flow` process against the warm estimate on one pair.
+    Oneshot {
+        /// The `riseg` binary.
+        riseg: PathBuf,
+        /// First image (PNG).
+        first: PathBuf,
+        /// Second image (PNG).
+        second: PathBuf,
+        /// Where the processes write their flow (overwritten by every run).
+        #[arg(long, value_name = "OUT.flo")]
+        out: PathBuf,
+    },
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -272,11 +296,57 @@ fn scaling(runs: usize) -> Result<()> {
     Ok(())
 }
 
+/// Thread counts of the `oneshot` comparison.
+const ONESHOT_THREADS: [usize; 2] = [1, 2];
+
+fn oneshot(riseg: &Path, first: &Path, second: &Path, out: &Path, runs: usize) -> Result<()> {
+    let a = read_png_as_rgb8(first)?;
+    let b = read_png_as_rgb8(second)?;
+    for threads in ONESHOT_THREADS {
+        let flow = DisFlow::new(FlowParams::MEDIUM)?.with_threads(threads)?;
+        let process = || -> Result<()> {
+            let status = Command::new(riseg)
+                .arg("flow")
+                .args([first, second])
+                .arg("-o")
+                .arg(out)
+                .args(["--threads", &threads.to_string()])
+                .status()
+                .with_context(|| format!("running {}", riseg.display()))?;
+            if !status.success() {
+                bail!("{} flow failed: {status}", riseg.display());
+            }
+            Ok(())
+        };
+        // Warm-ups: the estimator's buffers, the binary in the page cache.
+        flow.estimate(a.view(), b.view())?;
+        process()?;
+        let (mut warm, mut cold) = (Vec::with_capacity(runs), Vec::with_capacity(runs));
+        for _ in 0..runs {
+            let start = Instant::now();
+            flow.estimate(a.view(), b.view())?;
+            warm.push(start.elapsed().as_secs_f64() * 1e3);
+            let start = Instant::now();
+            process()?;
+            cold.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+        println!("oneshot\t{threads}t\twarm\t{:.3}", median(warm));
+        println!("oneshot\t{threads}t\tprocess\t{:.3}", median(cold));
+    }
+    Ok(())
+}
+
 fn main() -> Result<()> {
     let args = Args::parse();
     let runs = args.runs.max(1);
     match &args.what {
         What::Cycle { datasets } => cycle(datasets, runs),
         What::Scaling => scaling(runs),
+        What::Oneshot {
+            riseg,
+            first,
+            second,
+            out,
+        } => oneshot(riseg, first, second, out, runs),
     }
 }

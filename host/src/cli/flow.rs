@@ -88,23 +88,21 @@ pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
     let params = crate::cli::config::ConfigArg::from(args.config.clone())
         .load()?
         .flow_over(args.preset.params())?;
-    // Two PNG decodes are a large share of a one-shot call: unless one thread is asked
-    // for, the second image decodes on a scoped thread while this one decodes the first.
-    let (first, second) = if args.threads == 1 {
-        (
-            read_png_as_rgb8(&args.first)?,
-            read_png_as_rgb8(&args.second)?,
-        )
-    } else {
-        std::thread::scope(|s| {
-            let second = s.spawn(|| read_png_as_rgb8(&args.second));
-            let first = read_png_as_rgb8(&args.first);
-            let second = second
-                .join()
-                .map_err(|_| anyhow::anyhow!("decoding {} failed", args.second.display()));
-            anyhow::Ok((first?, second??))
-        })?
-    };
+    // One pool for the whole call, with this thread as one of its workers: with
+    // `--threads 1` no thread is started and no work crosses threads; with more, the
+    // second image decodes on a worker while this thread decodes the first, and the
+    // estimate runs on the same workers. This thread stays in the pool until the process
+    // ends (`riseg flow` makes one call per process); the pool lives to the end of the call.
+    let _workers = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads)
+        .use_current_thread()
+        .build()
+        .context("cannot start the worker threads")?;
+    let (first, second) = rayon::join(
+        || read_png_as_rgb8(&args.first),
+        || read_png_as_rgb8(&args.second),
+    );
+    let (first, second) = (first?, second?);
     if (first.width(), first.height()) != (second.width(), second.height()) {
         bail!(
             "{} is {}x{} but {} is {}x{}: the images must have one size",
@@ -116,9 +114,7 @@ pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
             second.height()
         );
     }
-    let estimator = args
-        .flow
-        .flow(|| DisFlow::new(params)?.with_threads(args.threads))?;
+    let estimator = args.flow.flow(|| DisFlow::new(params))?;
     let flow = estimator
         .estimate(first.view(), second.view())
         .with_context(|| {

@@ -39,7 +39,7 @@
 
 use super::densify::densify;
 use super::pool::Pool;
-use super::pyramid::{Padded, Plane, downsample, gradients, upsample_flow};
+use super::pyramid::{Padded, Plane, downsample, downsample_luma, gradients, upsample_flow};
 use super::search::{Grid, MAX_CANDIDATES, SearchSettings, Template, positions, search_level};
 use super::variational::{RefineInput, RefineSettings, Warpable, refine};
 use riseg_core::ImageView;
@@ -333,9 +333,28 @@ impl DisFlow {
         second: &Image<f32>,
         hint_px: Option<[f32; 2]>,
     ) -> Result<FlowImage, FlowError> {
+        check_pair(
+            first.width(),
+            first.height(),
+            second.width(),
+            second.height(),
+        )?;
+        self.estimate_from(
+            Base::Gray([first.as_slice(), second.as_slice()]),
+            first.size(),
+            hint_px,
+        )
+    }
+
+    /// The estimate from `base` (two images of one non-empty `size`), on the estimator's
+    /// pool if it has one; the errors of [`DisFlow::estimate_gray`] after the size check.
+    fn estimate_from(
+        &self,
+        base: Base<'_>,
+        (width, height): (usize, usize),
+        hint_px: Option<[f32; 2]>,
+    ) -> Result<FlowImage, FlowError> {
         let hint_px = hint_px.filter(|h| h[0].is_finite() && h[1].is_finite() && *h != [0.0; 2]);
-        let (width, height) = first.size();
-        check_pair(width, height, second.width(), second.height())?;
         let p = self.params.patch_size_px;
         if width < p || height < p {
             return Err(FlowError::TooSmall {
@@ -344,19 +363,16 @@ impl DisFlow {
                 patch_px: p,
             });
         }
-        if !first
-            .as_slice()
-            .iter()
-            .chain(second.as_slice())
-            .all(|v| v.is_finite())
+        if let Base::Gray(images) = base
+            && !images.iter().flat_map(|i| i.iter()).all(|v| v.is_finite())
         {
             return Err(FlowError::NonFinite);
         }
         #[cfg(feature = "threads")]
         if let Some(pool) = &self.pool {
-            return Ok(pool.install(|| self.run(first, second, hint_px)));
+            return Ok(pool.install(|| self.run(base, (width, height), hint_px)));
         }
-        Ok(self.run(first, second, hint_px))
+        Ok(self.run(base, (width, height), hint_px))
     }
 
     /// Levels `(finest, coarsest)` for a `w x h` image (at least one patch fits at both).
@@ -380,78 +396,108 @@ impl DisFlow {
         (finest, coarsest)
     }
 
-    fn run(
-        &self,
-        first_luma: &Image<f32>,
-        second_luma: &Image<f32>,
-        hint_px: Option<[f32; 2]>,
-    ) -> FlowImage {
+    /// The settings of pyramid level `l` (0 = full resolution) of an estimate whose
+    /// coarsest level is `coarsest`.
+    fn level_step(&self, l: usize, coarsest: usize, hint_px: Option<[f32; 2]>) -> LevelStep {
         let prm = &self.params;
-        let (w, h) = first_luma.size();
-        let (first, second) = (first_luma.as_slice(), second_luma.as_slice());
+        LevelStep {
+            gd_iters: prm.gd_iters,
+            propagation: prm.spatial_propagation && (l < coarsest || prm.coarsest_propagation),
+            variational_iters: prm.variational_iters,
+            anchor: if coarsest - l < prm.coarse_anchor_levels {
+                prm.coarse_anchor
+            } else {
+                0.0
+            },
+            candidates: hint_candidates(hint_px, 1.0 / (1u32 << l) as f32),
+        }
+    }
+
+    fn run(&self, base: Base<'_>, (w, h): (usize, usize), hint_px: Option<[f32; 2]>) -> FlowImage {
+        let prm = &self.params;
         let (finest, coarsest) = self.levels(w, h);
         let polish = finest > 0 && (prm.polish_gd_iters > 0 || prm.polish_variational_iters > 0);
+        let pool = &*self.buffers;
+        // Room for a full-resolution plane in every fresh buffer: those made at the coarse
+        // levels serve the finer ones again (one-shot: 4776 -> 3951 page faults).
+        pool.reserve_room(w * h);
+        self.flows.reserve_room(w * h);
         // Level l of both pyramids, from level 1 on (level 0 is the input itself).
         let mut p0: Vec<Plane> = Vec::with_capacity(coarsest);
         let mut p1: Vec<Plane> = Vec::with_capacity(coarsest);
-        for l in 1..=coarsest {
-            let pool = &*self.buffers;
-            let (a, b) = if l == 1 {
-                (
-                    downsample(first, w, h, pool),
-                    downsample(second, w, h, pool),
-                )
-            } else {
-                let (a, b) = (&p0[l - 2], &p1[l - 2]);
-                (
+        for _ in 0..coarsest {
+            let (a, b) = match (p0.last(), p1.last(), &base) {
+                (Some(a), Some(b), _) => (
                     downsample(&a.data, a.w, a.h, pool),
                     downsample(&b.data, b.w, b.h, pool),
-                )
+                ),
+                (_, _, Base::Gray([first, second])) => (
+                    downsample(first, w, h, pool),
+                    downsample(second, w, h, pool),
+                ),
+                (_, _, Base::Rgb([first, second])) => (
+                    downsample_luma(*first, pool),
+                    downsample_luma(*second, pool),
+                ),
             };
             p0.push(a);
             p1.push(b);
         }
-        let level = |l: usize| -> (&[f32], &[f32], usize, usize) {
-            match l.checked_sub(1) {
-                None => (first, second, w, h),
-                Some(k) => (&p0[k].data, &p1[k].data, p0[k].w, p0[k].h),
-            }
-        };
+        // Coarse to fine over the pyramid, down to level max(finest, 1).
+        // `flow` is `fw x fh`, at level `fl` (0 while there is none).
         let mut flow: Vec<[f32; 2]> = Vec::new();
-        let (mut fw, mut fh) = (0, 0);
-        for l in (finest..=coarsest).rev() {
-            let (i0, i1, lw, lh) = level(l);
+        let (mut fw, mut fh, mut fl) = (0, 0, 0);
+        for (l, (a, b)) in p0
+            .iter()
+            .zip(&p1)
+            .enumerate()
+            .skip(finest.saturating_sub(1))
+            .rev()
+        {
+            let l = l + 1;
             let next = if l == coarsest {
-                self.flows.zeroed(lw * lh)
+                self.flows.zeroed(a.w * a.h)
             } else {
-                upsample_flow(&flow, fw, fh, lw, lh, 2, &self.flows)
+                upsample_flow(&flow, fw, fh, a.w, a.h, 2, &self.flows)
             };
             self.flows.put(core::mem::replace(&mut flow, next));
-            (fw, fh) = (lw, lh);
-            let step = LevelStep {
-                gd_iters: prm.gd_iters,
-                propagation: prm.spatial_propagation && (l < coarsest || prm.coarsest_propagation),
-                variational_iters: prm.variational_iters,
-                anchor: if coarsest - l < prm.coarse_anchor_levels {
-                    prm.coarse_anchor
-                } else {
-                    0.0
-                },
-                candidates: hint_candidates(hint_px, 1.0 / (1u32 << l) as f32),
-            };
-            self.level(i0, i1, lw, lh, &mut flow, &step);
+            (fw, fh, fl) = (a.w, a.h, l);
+            self.level(
+                &a.data,
+                &b.data,
+                a.w,
+                a.h,
+                &mut flow,
+                &self.level_step(l, coarsest, hint_px),
+            );
         }
-        if finest > 0 {
-            let full = upsample_flow(&flow, fw, fh, w, h, 1 << finest, &self.flows);
-            self.flows.put(core::mem::replace(&mut flow, full));
-        }
-        if polish {
-            let step = LevelStep {
+        // Up to full resolution, where a last level runs when the estimate goes down to
+        // level 0 or polishes.
+        let full = if fl == 0 {
+            self.flows.zeroed(w * h)
+        } else {
+            upsample_flow(&flow, fw, fh, w, h, 1 << fl, &self.flows)
+        };
+        self.flows.put(core::mem::replace(&mut flow, full));
+        let full_step = if finest == 0 {
+            Some(self.level_step(0, coarsest, hint_px))
+        } else {
+            polish.then(|| LevelStep {
                 gd_iters: prm.polish_gd_iters,
                 propagation: false,
                 variational_iters: prm.polish_variational_iters,
                 anchor: 0.0,
                 candidates: hint_candidates(None, 1.0),
+            })
+        };
+        if let Some(step) = full_step {
+            let owned;
+            let [first, second] = match base {
+                Base::Gray(images) => images,
+                Base::Rgb(images) => {
+                    owned = images.map(luma);
+                    owned.each_ref().map(Image::as_slice)
+                }
             };
             self.level(first, second, w, h, &mut flow, &step);
         }
@@ -510,6 +556,8 @@ impl DisFlow {
             &self.flows,
         );
         self.flows.put(core::mem::replace(flow, dense));
+        // The refinement reads the unpadded image: its buffers may reuse this one.
+        pool.put(i1p.data);
         if step.variational_iters > 0 {
             let (gx1, gy1) = gradients(i1, w, h, pool);
             let second = Warpable::new(i1, &gx1, &gy1, (w, h), pool);
@@ -534,10 +582,19 @@ impl DisFlow {
             refine(&inp, flow, &settings, pool);
             second.recycle(pool);
         }
-        pool.put(i1p.data);
         pool.put(gx0);
         pool.put(gy0);
     }
+}
+
+/// The two images an estimate starts from.
+#[derive(Clone, Copy)]
+enum Base<'a> {
+    /// Luma (0-255), row-major, full resolution.
+    Gray([&'a [f32]; 2]),
+    /// RGB: the first downsampling converts it to luma on the fly ([`downsample_luma`]),
+    /// so the full-resolution luma is made only when a level runs there.
+    Rgb([ImageView<'a, [u8; 3]>; 2]),
 }
 
 /// What differs between the pyramid levels and the full-resolution polish.
@@ -570,7 +627,9 @@ fn hint_candidates(hint_px: Option<[f32; 2]>, scale: f32) -> (usize, [[f32; 2]; 
 }
 
 impl FlowEstimator for DisFlow {
-    /// Converts both images to luma ([`super::luma`]) and runs [`DisFlow::estimate_gray`].
+    /// The flow [`DisFlow::estimate_gray`] gives on both images' luma ([`super::luma`]), bit
+    /// for bit; the luma is computed while making the first pyramid level, and at full
+    /// resolution only when a level runs there (`finest_level` 0 or a polish).
     ///
     /// # Errors
     /// As [`DisFlow::estimate_gray`].
@@ -585,10 +644,11 @@ impl FlowEstimator for DisFlow {
             second.width(),
             second.height(),
         )?;
-        self.estimate_gray(&luma(first), &luma(second))
+        self.estimate_from(Base::Rgb([first, second]), first.size(), None)
     }
 
-    /// Converts both images to luma and runs [`DisFlow::estimate_gray_hinted`].
+    /// The flow [`DisFlow::estimate_gray_hinted`] gives on both images' luma, bit for bit
+    /// (as [`FlowEstimator::estimate`]).
     ///
     /// # Errors
     /// As [`DisFlow::estimate_gray`].
@@ -604,14 +664,15 @@ impl FlowEstimator for DisFlow {
             second.width(),
             second.height(),
         )?;
-        self.estimate_gray_hinted(&luma(first), &luma(second), Some(hint_px))
+        self.estimate_from(Base::Rgb([first, second]), first.size(), Some(hint_px))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testkit::flow::FlowScene;
+    use crate::io::image::RgbImage;
+    use crate::testkit::flow::{FlowScene, translated};
 
     fn medium() -> DisFlow {
         DisFlow::new(FlowParams::MEDIUM).unwrap()
@@ -679,13 +740,56 @@ mod tests {
         let three = medium().with_threads(3).unwrap();
         let a = one.estimate(p.first_view(), p.second_view()).unwrap();
         let b = three.estimate(p.first_view(), p.second_view()).unwrap();
-        let bits = |f: &FlowImage| -> Vec<u32> {
-            f.as_slice()
-                .iter()
-                .flat_map(|v| [v[0].to_bits(), v[1].to_bits()])
-                .collect()
-        };
         assert_eq!(bits(&a), bits(&b));
+    }
+
+    /// The bits of every flow component, row-major.
+    fn bits(f: &FlowImage) -> Vec<u32> {
+        f.as_slice()
+            .iter()
+            .flat_map(|v| [v[0].to_bits(), v[1].to_bits()])
+            .collect()
+    }
+
+    #[test]
+    fn rgb_estimate_is_the_luma_estimate_bit_for_bit() {
+        // `estimate` makes pyramid level 1 straight from RGB (no full-resolution luma
+        // unless a level runs there): every preset, a run down to full resolution, a
+        // one-level image (9x17) and views with a row stride wider than the image must
+        // give the flow of `estimate_gray` on the luma images, with and without a hint.
+        let full_resolution = FlowParams {
+            finest_level: 0,
+            ..FlowParams::MEDIUM
+        };
+        let presets = [
+            FlowParams::ULTRAFAST,
+            FlowParams::FAST,
+            FlowParams::MEDIUM,
+            FlowParams::FINE,
+            full_resolution,
+        ];
+        for (w, h) in [(163, 121), (9, 17)] {
+            let p = translated(w, h, 5, [2.5, -1.25]);
+            let (a, b) = (p.first_gray(), p.second_gray());
+            let strided = |rgb: &RgbImage| -> Vec<[u8; 3]> {
+                rgb.as_slice()
+                    .chunks(w)
+                    .flat_map(|row| row.iter().copied().chain([[7, 8, 9]; 3]))
+                    .collect()
+            };
+            let (sa, sb) = (strided(&p.first), strided(&p.second));
+            let first = ImageView::new(w, h, w + 3, &sa).unwrap();
+            let second = ImageView::new(w, h, w + 3, &sb).unwrap();
+            for params in presets {
+                let est = DisFlow::new(params).unwrap();
+                let want = est.estimate_gray(&a, &b).unwrap();
+                let got = est.estimate(first, second).unwrap();
+                assert_eq!(bits(&got), bits(&want), "{w}x{h} {params:?}");
+                let want = est.estimate_gray_hinted(&a, &b, Some([3.0, -1.0])).unwrap();
+                let got = est.estimate_with_hint(first, second, [3.0, -1.0]).unwrap();
+                assert_eq!(bits(&got), bits(&want), "hinted {w}x{h} {params:?}");
+            }
+        }
     }
 
     #[test]

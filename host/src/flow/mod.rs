@@ -126,13 +126,14 @@ pub fn luma(rgb: ImageView<'_, [u8; 3]>) -> Image<f32> {
     let mut data = Vec::with_capacity(width.saturating_mul(height));
     // Row by row: a view's rows are contiguous, its stride may not be the width.
     for row in (0..height).filter_map(|y| rgb.row(y)) {
-        data.extend(
-            row.iter().map(|p| {
-                0.299 * f32::from(p[0]) + 0.587 * f32::from(p[1]) + 0.114 * f32::from(p[2])
-            }),
-        );
+        data.extend(row.iter().map(luma_of));
     }
     Image::from_vec(width, height, data).expect("a view has height rows of width pixels")
+}
+
+/// The luma of one pixel, as [`luma`] computes it.
+pub(crate) fn luma_of(p: &[u8; 3]) -> f32 {
+    0.299 * f32::from(p[0]) + 0.587 * f32::from(p[1]) + 0.114 * f32::from(p[2])
 }
 
 /// Flow-specific operations on the owned flow image ([`FlowImage`]).

@@ -1,7 +1,11 @@
 //! Recycled buffers. Allocations the size of a 640x480 plane are mapped fresh from
 //! the operating system and fault in page by page on every call; at this image size that
 //! costs about as much as the arithmetic, so the estimator keeps its buffers between calls.
+//! Within a call (the first one above all, in a one-shot `riseg flow`), buffers made with
+//! room for a full-resolution plane ([`Pool::reserve_room`]) serve every pyramid level, so
+//! only the pages of the largest use of each buffer are ever faulted in.
 
+use core::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 /// Buffers kept at most (a 640x480 medium run uses a few dozen at its peak).
@@ -9,16 +13,40 @@ const KEEP: usize = 64;
 
 /// A shared pool of `Vec<T>` buffers.
 #[derive(Debug)]
-pub(crate) struct Pool<T = f32>(Mutex<Vec<Vec<T>>>);
+pub(crate) struct Pool<T = f32> {
+    free: Mutex<Vec<Vec<T>>>,
+    /// Values a fresh buffer has room for at least ([`Pool::reserve_room`]).
+    room: AtomicUsize,
+}
 
 impl<T> Default for Pool<T> {
     fn default() -> Self {
-        Self(Mutex::new(Vec::new()))
+        Self {
+            free: Mutex::new(Vec::new()),
+            room: AtomicUsize::new(0),
+        }
     }
 }
 
 impl<T: Copy + Default> Pool<T> {
-    /// A buffer of `len` zeros, reusing the smallest kept buffer that is large enough.
+    /// From now on, buffers made fresh have room for at least `len` values (the largest
+    /// `len` asked for so far holds). A run asks for its small buffers first (the coarse
+    /// pyramid levels) and its large ones last; with room for the large ones, the
+    /// buffers of the coarse levels serve the fine levels again instead of fresh ones.
+    /// Room costs no memory until it is used: fresh pages are mapped when first touched.
+    pub fn reserve_room(&self, len: usize) {
+        self.room.fetch_max(len, Ordering::Relaxed);
+    }
+
+    /// A fresh buffer of `len` zeros with at least the reserved room.
+    fn fresh(&self, len: usize) -> Vec<T> {
+        // All zeros: the allocator hands out fresh zeroed pages without writing them.
+        let mut v = vec![T::default(); len.max(self.room.load(Ordering::Relaxed))];
+        v.truncate(len);
+        v
+    }
+
+    /// A buffer of `len` zeros, reusing a kept buffer with room if there is one.
     pub fn zeroed(&self, len: usize) -> Vec<T> {
         match self.take(len) {
             Some(mut v) => {
@@ -26,12 +54,12 @@ impl<T: Copy + Default> Pool<T> {
                 v.resize(len, T::default());
                 v
             }
-            None => vec![T::default(); len],
+            None => self.fresh(len),
         }
     }
 
     /// A buffer of `len` values of no particular content (the caller overwrites all of
-    /// them), reusing the smallest kept buffer that is large enough.
+    /// them), reusing a kept buffer with room if there is one ([`Pool::take`]).
     pub fn scratch(&self, len: usize) -> Vec<T> {
         match self.take(len) {
             Some(mut v) => {
@@ -39,25 +67,33 @@ impl<T: Copy + Default> Pool<T> {
                 v.resize(len, T::default());
                 v
             }
-            None => vec![T::default(); len],
+            None => self.fresh(len),
         }
     }
 
-    /// The smallest kept buffer with room for `len` values, if any.
+    /// The kept buffer with room for `len` values that [`Pool::scratch`] fills least: the
+    /// shortest already holding `len` values (nothing to fill; call after call, each
+    /// buffer keeps one role), else the longest. `None` if no buffer has room.
     fn take(&self, len: usize) -> Option<Vec<T>> {
-        let mut free = self.0.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut free = self.free.lock().unwrap_or_else(PoisonError::into_inner);
         let best = free
             .iter()
             .enumerate()
             .filter(|(_, v)| v.capacity() >= len)
-            .min_by_key(|(_, v)| v.capacity())
+            .min_by_key(|(_, v)| {
+                if v.len() >= len {
+                    (false, v.len())
+                } else {
+                    (true, usize::MAX - v.len())
+                }
+            })
             .map(|(i, _)| i);
         best.map(|i| free.swap_remove(i))
     }
 
     /// Gives a buffer back for later calls.
     pub fn put(&self, v: Vec<T>) {
-        let mut free = self.0.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut free = self.free.lock().unwrap_or_else(PoisonError::into_inner);
         if free.len() < KEEP {
             free.push(v);
         }
@@ -84,5 +120,23 @@ mod tests {
         assert_eq!((d.len(), d.capacity()), (80, cap));
         let c = pool.zeroed(1000);
         assert_eq!(c.len(), 1000);
+    }
+
+    #[test]
+    fn reserved_room_lets_a_small_buffer_serve_a_larger_request() {
+        let pool: Pool = Pool::default();
+        pool.reserve_room(1000);
+        pool.reserve_room(10); // the largest room asked for holds
+        let mut small = pool.scratch(10);
+        assert_eq!(small.len(), 10);
+        assert!(small.capacity() >= 1000, "{}", small.capacity());
+        small.fill(3.0);
+        let cap = small.capacity();
+        pool.put(small);
+        let large = pool.zeroed(1000);
+        assert_eq!(large.capacity(), cap, "the small buffer was reused");
+        assert!(large.len() == 1000 && large.iter().all(|&v| v == 0.0));
+        let fresh = pool.zeroed(20);
+        assert!(fresh.len() == 20 && fresh.iter().all(|&v| v == 0.0));
     }
 }

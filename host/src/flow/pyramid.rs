@@ -6,8 +6,10 @@
 //! its centre sits at `(2i + 0.5, 2j + 0.5)` in level-`l` coordinates and displacements
 //! scale by exactly 2 between levels.
 
+use super::luma_of;
 use super::pool::Pool;
 use crate::par::*;
+use riseg_core::ImageView;
 
 /// A plain row-major `f32` plane.
 #[derive(Debug, Clone)]
@@ -31,6 +33,28 @@ pub(crate) fn downsample(src: &[f32], w: usize, h: usize, pool: &Pool) -> Plane 
                 .zip(r1.chunks_exact(2))
             {
                 *o = 0.25 * (a[0] + a[1] + b[0] + b[1]);
+            }
+        });
+    }
+    Plane { w: w2, h: h2, data }
+}
+
+/// [`downsample`] of the luma of `rgb` ([`super::luma`]), converting each pixel as it
+/// is read: the same values, bit for bit, without the full-resolution luma image.
+pub(crate) fn downsample_luma(rgb: ImageView<'_, [u8; 3]>, pool: &Pool) -> Plane {
+    let (w2, h2) = (rgb.width() / 2, rgb.height() / 2);
+    let mut data = pool.scratch(w2 * h2);
+    if w2 > 0 {
+        data.par_chunks_mut(w2).enumerate().for_each(|(y, out)| {
+            let (Some(r0), Some(r1)) = (rgb.row(2 * y), rgb.row(2 * y + 1)) else {
+                return;
+            };
+            for ((o, a), b) in out
+                .iter_mut()
+                .zip(r0.chunks_exact(2))
+                .zip(r1.chunks_exact(2))
+            {
+                *o = 0.25 * (luma_of(&a[0]) + luma_of(&a[1]) + luma_of(&b[0]) + luma_of(&b[1]));
             }
         });
     }

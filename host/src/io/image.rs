@@ -826,15 +826,23 @@ pub fn write_flo_as(
 ) -> Result<(), ImageIoError> {
     let header =
         flo_header(flow).map_err(|e| ImageIoError::new(path, ImageProblem::CorruptFlo(e)))?;
-    // Encoded and written a piece at a time: the whole file never sits in memory.
-    const PIECE_VECTORS: usize = 8192;
-    let mut piece = vec![0u8; PIECE_VECTORS * 8];
     write_atomic_as(path, durability, |file| {
         file.write_all(&header)?;
-        for vectors in flow.data.chunks(PIECE_VECTORS) {
-            let bytes = &mut piece[..vectors.len() * 8];
-            encode_flo_body(vectors, bytes);
-            file.write_all(bytes)?;
+        // The body is the vectors' little-endian f32 bytes. On a little-endian machine
+        // those are the vectors' bytes in memory: one write, no copy and no fresh buffer
+        // (a copy of a 640x480 field is 2.4 MB of pages to fault in; `riseg flow` one-shot,
+        // measured). Elsewhere they are encoded a piece at a time.
+        #[cfg(target_endian = "little")]
+        file.write_all(bytemuck::cast_slice(&flow.data))?;
+        #[cfg(target_endian = "big")]
+        {
+            const PIECE_VECTORS: usize = 8192;
+            let mut piece = vec![0u8; PIECE_VECTORS * 8];
+            for vectors in flow.data.chunks(PIECE_VECTORS) {
+                let bytes = &mut piece[..vectors.len() * 8];
+                encode_flo_body(vectors, bytes);
+                file.write_all(bytes)?;
+            }
         }
         Ok(())
     })
@@ -1070,6 +1078,11 @@ mod tests {
         let path = dir.join("a.flo");
         write_flo(&path, &sample_flow()).unwrap();
         assert_eq!(read_flo(&path).unwrap(), sample_flow());
+        // The file is written from the vectors' memory, not through `encode_flo`.
+        assert_eq!(
+            fs::read(&path).unwrap(),
+            encode_flo(&sample_flow()).unwrap()
+        );
         assert_eq!(files_in(&dir), ["a.flo"]);
         fs::remove_dir_all(&dir).unwrap();
     }

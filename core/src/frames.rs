@@ -202,6 +202,23 @@ pub fn create_frames(
     samples: &mut [FrameSample],
     frames: &mut [BodyFrame],
 ) -> Result<FrameSet, Error> {
+    create_frames_with_twists(input, cfg, samples, frames, |_, _| {})
+}
+
+/// [`create_frames`], handing each kept frame's twist to `on_twist(place, twist)` (its
+/// place in `frames`): the twist a frame is checked with is the one [`compute_twists`]
+/// gives it, so [`crate::pipeline::update_mask`] takes CalcBFIFs from here instead of
+/// computing every twist twice.
+///
+/// # Errors
+/// As [`create_frames`].
+pub(crate) fn create_frames_with_twists(
+    input: &MotionInput<'_>,
+    cfg: &Config,
+    samples: &mut [FrameSample],
+    frames: &mut [BodyFrame],
+    mut on_twist: impl FnMut(usize, Twist),
+) -> Result<FrameSet, Error> {
     cfg.check()?;
     let n = cfg.frame_samples;
     check_len(Buffer::Samples, n, samples.len())?;
@@ -227,11 +244,12 @@ pub fn create_frames(
         let Some(frame) = build_frame(input, cfg, samples, i) else {
             continue;
         };
-        if frame.twist(&space_origin).is_none() {
+        let Some(twist) = frame.twist(&space_origin) else {
             continue;
-        }
+        };
         if let Some(slot) = frames.get_mut(count) {
             *slot = frame;
+            on_twist(count, twist);
             count += 1;
         }
     }
@@ -499,19 +517,25 @@ fn build_frame_listing<const CAP: usize>(
     let x_lo = (ox - reach_px).clamp(0, i64::from(u32::MAX)) as u32;
     let x_span = ((ox + reach_px).clamp(0, i64::from(u32::MAX)) as u32).saturating_sub(x_lo);
     let key = u32::from(o.label());
-    // Tracked, same label, columns within reach. (The origin itself passes: it is left
-    // out by its pixel in the passes that follow.)
+    // Tracked, same label, columns within reach. (The origin itself passes: the listing
+    // skips its place, the fallback its pixel.)
     let candidate = |s: &FrameSample| (s.px[0].wrapping_sub(x_lo) <= x_span) & (s.key == key);
     // The window's candidates, listed without a branch per sample (the column test is a
-    // coin flip for the branch predictor). A write at `CAP` wraps and overwrites the
-    // first entry (the mask only spares a bounds check); such a list is not used. Window
-    // places fit `u16` (checked first).
+    // coin flip for the branch predictor), in two runs around the origin's place (no
+    // other sample has its pixel). A write at `CAP` wraps and overwrites the first entry
+    // (the mask only spares a bounds check); such a list is not used. Window places fit
+    // `u16` (checked first).
     if window.len() <= 1 << 16 {
+        let own = i.wrapping_sub(first).min(window.len());
+        let (before, from_own) = window.split_at(own);
+        let after = from_own.get(1..).unwrap_or(&[]);
         let mut listed = [0u16; CAP];
         let mut count = 0;
-        for (k, s) in window.iter().enumerate() {
-            listed[count & (CAP - 1)] = k as u16;
-            count += usize::from(candidate(s));
+        for (start, run) in [(0, before), (own + 1, after)] {
+            for (k, s) in (start..).zip(run) {
+                listed[count & (CAP - 1)] = k as u16;
+                count += usize::from(candidate(s));
+            }
         }
         // At `CAP` the next write already wrapped.
         if count < CAP
@@ -552,10 +576,10 @@ fn prunable(dj: Real, db: Real) -> bool {
         && (AREA_BOUND_MIN..=AREA_BOUND_MAX).contains(&(dj * db))
 }
 
-/// [`best_triangle`] over `window[k]` for `k` in `listed` (in that order), bit for bit:
-/// one pass finds the second point and keeps the candidates within the side limits with
-/// their distance from the origin, the other looks for the third point among those only.
-/// `listed` is overwritten.
+/// [`best_triangle`] over `window[k]` for `k` in `listed` (in that order; the origin's
+/// place is not listed), bit for bit: one pass finds the second point and keeps the
+/// candidates within the side limits with their distance from the origin, the other
+/// looks for the third point among those only. `listed` is overwritten.
 fn best_triangle_listed(
     o: &FrameSample,
     window: &[FrameSample],
@@ -574,9 +598,6 @@ fn best_triangle_listed(
         let Some(s) = window.get(usize::from(k)) else {
             continue;
         };
-        if s.px == o.px {
-            continue;
-        }
         let d = (s.p_t - o.p_t).norm();
         let keep = (d >= min_side) & (d <= max_side);
         if let (Some(slot), Some(slot_d)) = (listed.get_mut(near), dist.get_mut(near)) {
@@ -591,13 +612,16 @@ fn best_triangle_listed(
     // The largest so far as (sample, doubled area); the start `-∞` prunes nothing, and a
     // passing area is never `-∞`. Selects, not branches, as for the second point.
     let mut best_k = (o, Real::NEG_INFINITY);
+    // Every kept `db` lies within the side limits, and rounded products are monotone: if
+    // both limits are prunable with `dj`, every kept candidate is.
+    let all_prunable = prunable(dj, min_side) && prunable(dj, max_side);
     for (&k, &db) in listed.iter().zip(dist.iter()).take(near) {
         // `|a × b| <= |a|·|b|`: a candidate whose bound is below the best area so far
         // cannot win (ties keep the earlier one), so it is skipped before any arithmetic.
         // The slack covers the rounding of both sides (a few units in the last place),
         // which holds while the squares inside the norms are normal numbers.
         let bound = dj * db;
-        if bound * AREA_BOUND_SLACK < best_k.1 && prunable(dj, db) {
+        if bound * AREA_BOUND_SLACK < best_k.1 && (all_prunable || prunable(dj, db)) {
             continue;
         }
         let Some(s) = window.get(usize::from(k)) else {

@@ -25,12 +25,13 @@
 use core::hint::select_unpredictable;
 
 use nalgebra::{Point3, Vector3};
+use wide::f32x4;
 
 use crate::{
     Config, Error, ImageView, Intrinsics, Twist,
     error::{Buffer, check_len},
     image::{MAX_DEPTH_M, valid_depth},
-    math::{Real, floor},
+    math::{Real, floor, sqrt4},
     rng::Pcg32,
     se3::{spatial_twist, try_frame_from_points},
 };
@@ -237,11 +238,12 @@ pub(crate) fn create_frames_with_twists(
     };
 
     let mut count = 0;
+    let mut scratch = TriangleScratch::new();
     for (i, origin) in samples.iter().enumerate() {
         if !origin.tracked() {
             continue;
         }
-        let Some(frame) = build_frame(input, cfg, samples, i) else {
+        let Some(frame) = build_frame(input, cfg, samples, i, &mut scratch) else {
             continue;
         };
         let Some(twist) = frame.twist(&space_origin) else {
@@ -484,8 +486,31 @@ fn build_frame(
     cfg: &Config,
     samples: &[FrameSample],
     i: usize,
+    scratch: &mut TriangleScratch,
 ) -> Option<BodyFrame> {
-    build_frame_listing::<LISTED_ON_STACK>(input, cfg, samples, i)
+    build_frame_listing::<LISTED_ON_STACK>(input, cfg, samples, i, scratch)
+}
+
+/// Scratch of [`build_frame`] for the candidates of one origin, on the stack of
+/// [`create_frames`] once for all origins (filling it for each would cost more than the
+/// search): an origin reads only the entries it wrote.
+struct TriangleScratch {
+    /// Window places of the listed candidates, then of the kept ones.
+    listed: [u16; LISTED_ON_STACK],
+    /// Distance of each kept candidate from the origin.
+    dist: [Real; LISTED_ON_STACK],
+    /// Each kept candidate's point at `t`, component by component.
+    kept: [[Real; LISTED_ON_STACK]; 3],
+}
+
+impl TriangleScratch {
+    const fn new() -> Self {
+        Self {
+            listed: [0; LISTED_ON_STACK],
+            dist: [0.0; LISTED_ON_STACK],
+            kept: [[0.0; LISTED_ON_STACK]; 3],
+        }
+    }
 }
 
 /// [`build_frame`], listing fewer than `CAP` candidates (a power of two, at most
@@ -496,6 +521,7 @@ fn build_frame_listing<const CAP: usize>(
     cfg: &Config,
     samples: &[FrameSample],
     i: usize,
+    scratch: &mut TriangleScratch,
 ) -> Option<BodyFrame> {
     const { assert!(CAP.is_power_of_two() && CAP <= LISTED_ON_STACK) };
     let o = samples.get(i)?;
@@ -529,7 +555,7 @@ fn build_frame_listing<const CAP: usize>(
         let own = i.wrapping_sub(first).min(window.len());
         let (before, from_own) = window.split_at(own);
         let after = from_own.get(1..).unwrap_or(&[]);
-        let mut listed = [0u16; CAP];
+        let listed = &mut scratch.listed;
         let mut count = 0;
         for (start, run) in [(0, before), (own + 1, after)] {
             for (k, s) in (start..).zip(run) {
@@ -538,10 +564,8 @@ fn build_frame_listing<const CAP: usize>(
             }
         }
         // At `CAP` the next write already wrapped.
-        if count < CAP
-            && let Some(listed) = listed.get_mut(..count)
-        {
-            return best_triangle_listed(o, window, listed, cfg);
+        if count < CAP {
+            return best_triangle_listed(o, window, count, scratch, cfg);
         }
     }
     best_triangle(
@@ -576,18 +600,24 @@ fn prunable(dj: Real, db: Real) -> bool {
         && (AREA_BOUND_MIN..=AREA_BOUND_MAX).contains(&(dj * db))
 }
 
-/// [`best_triangle`] over `window[k]` for `k` in `listed` (in that order; the origin's
-/// place is not listed), bit for bit: one pass finds the second point and keeps the
-/// candidates within the side limits with their distance from the origin, the other
-/// looks for the third point among those only. `listed` is overwritten.
+/// [`best_triangle`] over `window[k]` for `k` in the first `count` entries of
+/// `scratch.listed` (in that order; the origin's place is not listed), bit for bit: one
+/// pass finds the second point and keeps the candidates within the side limits with their
+/// distance from the origin and their coordinates, the other looks for the third point
+/// among those only, four at a time.
 fn best_triangle_listed(
     o: &FrameSample,
     window: &[FrameSample],
-    listed: &mut [u16],
+    count: usize,
+    scratch: &mut TriangleScratch,
     cfg: &Config,
 ) -> Option<BodyFrame> {
+    const MASK: usize = LISTED_ON_STACK - 1;
     let (min_side, max_side) = (cfg.frame_min_side_m, cfg.frame_max_side_m);
-    let mut dist = [0.0 as Real; LISTED_ON_STACK];
+    let TriangleScratch { listed, dist, kept } = scratch;
+    let listed = listed.get_mut(..count)?;
+    // The kept ones' count stays below `count <= LISTED_ON_STACK`, so the masked places
+    // never wrap.
     let mut near = 0;
     // The farthest so far as (place in `listed`, distance); a kept distance is never
     // `-∞`, so the first kept one always replaces the start. Selects, not branches: the
@@ -600,36 +630,98 @@ fn best_triangle_listed(
         };
         let d = (s.p_t - o.p_t).norm();
         let keep = (d >= min_side) & (d <= max_side);
-        if let (Some(slot), Some(slot_d)) = (listed.get_mut(near), dist.get_mut(near)) {
+        if let Some(slot) = listed.get_mut(near) {
             *slot = k;
-            *slot_d = d;
+        }
+        dist[near & MASK] = d;
+        for (c, xyz) in kept.iter_mut().enumerate() {
+            xyz[near & MASK] = s.p_t[c];
         }
         best_j = select_unpredictable(keep & (d > best_j.1), (near, d), best_j);
         near += usize::from(keep);
     }
     let (j_at, dj) = best_j;
     let j = window.get(usize::from(*listed.get(j_at)?))?;
-    // The largest so far as (sample, doubled area); the start `-∞` prunes nothing, and a
-    // passing area is never `-∞`. Selects, not branches, as for the second point.
-    let mut best_k = (o, Real::NEG_INFINITY);
+    // The second point itself and the places after the last kept one (up to a multiple
+    // of four) are never picked: a NaN coordinate fails every test of the third point.
+    let [xs, ys, zs] = kept;
+    let fours = near.div_ceil(4);
+    for x in xs.get_mut(near..fours * 4).unwrap_or(&mut []) {
+        *x = Real::NAN;
+    }
+    if let Some(x) = xs.get_mut(j_at) {
+        *x = Real::NAN;
+    }
+    let best = third_point_of_kept(o, (j, dj), [&*xs, &*ys, &*zs], dist, fours, cfg);
+    let kk = window.get(usize::from(*listed.get(best.1)?))?;
+    triangle_frame(o, j, (kk, best.0), cfg)
+}
+
+/// [`third_point`] over the first `4·fours` kept candidates (points `xyz`, distances
+/// `dist` from `o`; a NaN `x` fails), four lanes at once: the same operations in the same
+/// order, lane by lane. Returns (doubled area, place) of the pick: the largest area, the
+/// earliest place among equal ones, as a scan in order picks (`-∞` if none).
+fn third_point_of_kept(
+    o: &FrameSample,
+    (j, dj): (&FrameSample, Real),
+    xyz: [&[Real; LISTED_ON_STACK]; 3],
+    dist: &[Real; LISTED_ON_STACK],
+    fours: usize,
+    cfg: &Config,
+) -> (Real, usize) {
+    let (min_side, max_side) = (cfg.frame_min_side_m, cfg.frame_max_side_m);
+    let splat = f32x4::splat;
+    let a = j.p_t - o.p_t;
+    let [ox, oy, oz] = [o.p_t.x, o.p_t.y, o.p_t.z].map(splat);
+    let [jx, jy, jz] = [j.p_t.x, j.p_t.y, j.p_t.z].map(splat);
+    let [ax, ay, az] = [a.x, a.y, a.z].map(splat);
+    let (min4, max4, dj4) = (splat(min_side), splat(max_side), splat(dj));
+    let sin_dj = splat(cfg.frame_min_sin * dj);
     // Every kept `db` lies within the side limits, and rounded products are monotone: if
     // both limits are prunable with `dj`, every kept candidate is.
     let all_prunable = prunable(dj, min_side) && prunable(dj, max_side);
-    for (&k, &db) in listed.iter().zip(dist.iter()).take(near) {
-        // `|a × b| <= |a|·|b|`: a candidate whose bound is below the best area so far
-        // cannot win (ties keep the earlier one), so it is skipped before any arithmetic.
-        // The slack covers the rounding of both sides (a few units in the last place),
-        // which holds while the squares inside the norms are normal numbers.
-        let bound = dj * db;
-        if bound * AREA_BOUND_SLACK < best_k.1 && (all_prunable || prunable(dj, db)) {
+    // Each lane keeps its own pick (the earliest of its largest areas) and place.
+    let mut best_area = splat(Real::NEG_INFINITY);
+    let mut best_at = splat(0.0);
+    let mut at = f32x4::new([0.0, 1.0, 2.0, 3.0]);
+    let [xs, ys, zs] = xyz.map(|c| c.as_chunks::<4>().0);
+    let (ds, _) = dist.as_chunks::<4>();
+    for (((x, y), z), db) in xs.iter().zip(ys).zip(zs).zip(ds).take(fours) {
+        let here = at;
+        at += splat(4.0);
+        let db = f32x4::new(*db);
+        // `|a × b| <= |a|·|b|`: a candidate whose bound is below its lane's best area
+        // cannot win (ties keep the earlier one), so four such are skipped before any
+        // arithmetic. The slack covers the rounding of both sides (a few units in the
+        // last place), which holds while the squares inside the norms are normal numbers.
+        if all_prunable
+            && (dj4 * db * splat(AREA_BOUND_SLACK))
+                .simd_lt(best_area)
+                .all()
+        {
             continue;
         }
-        let Some(s) = window.get(usize::from(k)) else {
-            continue;
-        };
-        best_k = third_point(o, (j, dj), (s, db), best_k, cfg);
+        let [sx, sy, sz] = [x, y, z].map(|c| f32x4::new(*c));
+        let (dx, dy, dz) = (sx - jx, sy - jy, sz - jz);
+        let djk = sqrt4((dx * dx + dy * dy) + dz * dz);
+        let (bx, by, bz) = (sx - ox, sy - oy, sz - oz);
+        let (c0, c1, c2) = (ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx);
+        let area = sqrt4((c0 * c0 + c1 * c1) + c2 * c2);
+        let larger = djk.simd_ge(min4)
+            & djk.simd_le(max4)
+            & area.simd_ge(sin_dj * db)
+            & area.simd_gt(best_area);
+        best_area = larger.select(area, best_area);
+        best_at = larger.select(here, best_at);
     }
-    triangle_frame(o, j, best_k, cfg)
+    let mut best = (Real::NEG_INFINITY, usize::MAX);
+    for (area, at) in best_area.to_array().into_iter().zip(best_at.to_array()) {
+        let at = at as usize;
+        if area > best.0 || (area == best.0 && at < best.1) {
+            best = (area, at);
+        }
+    }
+    best
 }
 
 /// The frame on origin `o` and the best two of `candidates` (samples of its segment near
@@ -1023,13 +1115,15 @@ mod tests {
             )
             .unwrap();
             let cfg = Config::PAPER;
+            // One scratch for every origin and both capacities, as in `create_frames`.
+            let mut scratch = TriangleScratch::new();
             for i in 0..samples.len() {
                 let plain = build_frame_plain(&input, &cfg, &samples, i);
                 proptest::prop_assert_eq!(
-                    build_frame(&input, &cfg, &samples, i), plain, "origin {}", i
+                    build_frame(&input, &cfg, &samples, i, &mut scratch), plain, "origin {}", i
                 );
                 proptest::prop_assert_eq!(
-                    build_frame_listing::<8>(&input, &cfg, &samples, i),
+                    build_frame_listing::<8>(&input, &cfg, &samples, i, &mut scratch),
                     plain,
                     "origin {} (capacity 8)", i
                 );

@@ -495,11 +495,12 @@ fn build_frame(
 /// [`create_frames`] once for all origins (filling it for each would cost more than the
 /// search): an origin reads only the entries it wrote.
 struct TriangleScratch {
-    /// Window places of the listed candidates, then of the kept ones.
+    /// Window places of the listed candidates.
     listed: [u16; LISTED_ON_STACK],
-    /// Distance of each kept candidate from the origin.
+    /// Distance of each listed candidate from the origin (zero if outside the limits).
     dist: [Real; LISTED_ON_STACK],
-    /// Each kept candidate's point at `t`, component by component.
+    /// Each listed candidate's point at `t`, component by component (`x` NaN once it is
+    /// out of the running for the third point).
     kept: [[Real; LISTED_ON_STACK]; 3],
 }
 
@@ -601,10 +602,12 @@ fn prunable(dj: Real, db: Real) -> bool {
 }
 
 /// [`best_triangle`] over `window[k]` for `k` in the first `count` entries of
-/// `scratch.listed` (in that order; the origin's place is not listed), bit for bit: one
-/// pass finds the second point and keeps the candidates within the side limits with their
-/// distance from the origin and their coordinates, the other looks for the third point
-/// among those only, four at a time.
+/// `scratch.listed` (in that order; the origin's place is not listed), bit for bit. The
+/// candidates' points are gathered component by component; one pass, four candidates
+/// at a time, finds the second point and drops the candidates outside the side limits,
+/// the other looks for the third point among the rest, four at a time too. Each lane
+/// keeps the earliest of its best; the earliest of the lanes' equal best wins, as a scan
+/// in order picks.
 fn best_triangle_listed(
     o: &FrameSample,
     window: &[FrameSample],
@@ -613,48 +616,78 @@ fn best_triangle_listed(
     cfg: &Config,
 ) -> Option<BodyFrame> {
     const MASK: usize = LISTED_ON_STACK - 1;
-    let (min_side, max_side) = (cfg.frame_min_side_m, cfg.frame_max_side_m);
-    let TriangleScratch { listed, dist, kept } = scratch;
-    let listed = listed.get_mut(..count)?;
-    // The kept ones' count stays below `count <= LISTED_ON_STACK`, so the masked places
-    // never wrap.
-    let mut near = 0;
-    // The farthest so far as (place in `listed`, distance); a kept distance is never
-    // `-∞`, so the first kept one always replaces the start. Selects, not branches: the
-    // tests wait on a square root, so a mispredicted branch would cost its latency too.
-    let mut best_j = (usize::MAX, Real::NEG_INFINITY);
-    for at in 0..listed.len() {
-        let Some(&k) = listed.get(at) else { break };
-        let Some(s) = window.get(usize::from(k)) else {
-            continue;
-        };
-        let d = (s.p_t - o.p_t).norm();
-        let keep = (d >= min_side) & (d <= max_side);
-        if let Some(slot) = listed.get_mut(near) {
-            *slot = k;
-        }
-        dist[near & MASK] = d;
-        for (c, xyz) in kept.iter_mut().enumerate() {
-            xyz[near & MASK] = s.p_t[c];
-        }
-        best_j = select_unpredictable(keep & (d > best_j.1), (near, d), best_j);
-        near += usize::from(keep);
+    let TriangleScratch {
+        listed,
+        dist,
+        kept: [xs, ys, zs],
+    } = scratch;
+    let listed = listed.get(..count)?;
+    // `count < LISTED_ON_STACK`, so the masked places never wrap. A NaN coordinate fails
+    // every test below: so are the places after the last candidate (up to a multiple of
+    // four) left out.
+    for (at, &k) in listed.iter().enumerate() {
+        let p = window
+            .get(usize::from(k))
+            .map_or([Real::NAN; 3], |s| s.p_t.into());
+        xs[at & MASK] = p[0];
+        ys[at & MASK] = p[1];
+        zs[at & MASK] = p[2];
     }
-    let (j_at, dj) = best_j;
-    let j = window.get(usize::from(*listed.get(j_at)?))?;
-    // The second point itself and the places after the last kept one (up to a multiple
-    // of four) are never picked: a NaN coordinate fails every test of the third point.
-    let [xs, ys, zs] = kept;
-    let fours = near.div_ceil(4);
-    for x in xs.get_mut(near..fours * 4).unwrap_or(&mut []) {
+    let fours = count.div_ceil(4);
+    for x in xs.get_mut(count..fours * 4).unwrap_or(&mut []) {
         *x = Real::NAN;
     }
+    let (min_side, max_side) = (cfg.frame_min_side_m, cfg.frame_max_side_m);
+    let splat = f32x4::splat;
+    let [ox, oy, oz] = [o.p_t.x, o.p_t.y, o.p_t.z].map(splat);
+    let (min4, max4) = (splat(min_side), splat(max_side));
+    // The second point: the farthest candidate within the side limits. The distance of
+    // each is kept (zero for one outside, whose `x` turns NaN).
+    let mut farthest = splat(Real::NEG_INFINITY);
+    let mut farthest_at = splat(0.0);
+    let mut at = f32x4::new([0.0, 1.0, 2.0, 3.0]);
+    let (x4, _) = xs.as_chunks_mut::<4>();
+    let (y4, _) = ys.as_chunks::<4>();
+    let (z4, _) = zs.as_chunks::<4>();
+    let (d4, _) = dist.as_chunks_mut::<4>();
+    for (((x, y), z), d) in x4.iter_mut().zip(y4).zip(z4).zip(d4).take(fours) {
+        let here = at;
+        at += splat(4.0);
+        let sx = f32x4::new(*x);
+        let (dx, dy, dz) = (sx - ox, f32x4::new(*y) - oy, f32x4::new(*z) - oz);
+        let db = sqrt4((dx * dx + dy * dy) + dz * dz);
+        let keep = db.simd_ge(min4) & db.simd_le(max4);
+        let farther = keep & db.simd_gt(farthest);
+        farthest = farther.select(db, farthest);
+        farthest_at = farther.select(here, farthest_at);
+        *d = keep.select(db, splat(0.0)).to_array();
+        *x = keep.select(sx, splat(Real::NAN)).to_array();
+    }
+    let (dj, j_at) = earliest_largest(farthest, farthest_at);
+    if dj == Real::NEG_INFINITY {
+        return None;
+    }
+    let j = window.get(usize::from(*listed.get(j_at)?))?;
+    // The second point is not the third.
     if let Some(x) = xs.get_mut(j_at) {
         *x = Real::NAN;
     }
     let best = third_point_of_kept(o, (j, dj), [&*xs, &*ys, &*zs], dist, fours, cfg);
     let kk = window.get(usize::from(*listed.get(best.1)?))?;
     triangle_frame(o, j, (kk, best.0), cfg)
+}
+
+/// The largest of four lanes' values and its place (`at`, whole numbers), the smallest
+/// place among equal ones; `(-∞, ·)` if every value is `-∞`.
+fn earliest_largest(value: f32x4, at: f32x4) -> (Real, usize) {
+    let mut best = (Real::NEG_INFINITY, usize::MAX);
+    for (v, at) in value.to_array().into_iter().zip(at.to_array()) {
+        let at = at as usize;
+        if v > best.0 || (v == best.0 && at < best.1) {
+            best = (v, at);
+        }
+    }
+    best
 }
 
 /// [`third_point`] over the first `4·fours` kept candidates (points `xyz`, distances
@@ -678,11 +711,14 @@ fn third_point_of_kept(
     let (min4, max4, dj4) = (splat(min_side), splat(max_side), splat(dj));
     let sin_dj = splat(cfg.frame_min_sin * dj);
     // Every kept `db` lies within the side limits, and rounded products are monotone: if
-    // both limits are prunable with `dj`, every kept candidate is.
+    // both limits are prunable with `dj`, every kept candidate is (a dropped one, with
+    // `db` zero, never wins anyway).
     let all_prunable = prunable(dj, min_side) && prunable(dj, max_side);
-    // Each lane keeps its own pick (the earliest of its largest areas) and place.
+    // Each lane keeps its own pick (the earliest of its largest areas) and place; `best`
+    // is the largest of the lanes' areas.
     let mut best_area = splat(Real::NEG_INFINITY);
     let mut best_at = splat(0.0);
+    let mut best = Real::NEG_INFINITY;
     let mut at = f32x4::new([0.0, 1.0, 2.0, 3.0]);
     let [xs, ys, zs] = xyz.map(|c| c.as_chunks::<4>().0);
     let (ds, _) = dist.as_chunks::<4>();
@@ -690,13 +726,13 @@ fn third_point_of_kept(
         let here = at;
         at += splat(4.0);
         let db = f32x4::new(*db);
-        // `|a × b| <= |a|·|b|`: a candidate whose bound is below its lane's best area
+        // `|a × b| <= |a|·|b|`: a candidate whose bound is below the best area so far
         // cannot win (ties keep the earlier one), so four such are skipped before any
         // arithmetic. The slack covers the rounding of both sides (a few units in the
         // last place), which holds while the squares inside the norms are normal numbers.
         if all_prunable
             && (dj4 * db * splat(AREA_BOUND_SLACK))
-                .simd_lt(best_area)
+                .simd_lt(splat(best))
                 .all()
         {
             continue;
@@ -713,15 +749,12 @@ fn third_point_of_kept(
             & area.simd_gt(best_area);
         best_area = larger.select(area, best_area);
         best_at = larger.select(here, best_at);
+        // No area is NaN: a plain comparison takes the larger.
+        let larger_of = |a: Real, b: Real| if a > b { a } else { b };
+        let [a0, a1, a2, a3] = best_area.to_array();
+        best = larger_of(larger_of(a0, a1), larger_of(a2, a3));
     }
-    let mut best = (Real::NEG_INFINITY, usize::MAX);
-    for (area, at) in best_area.to_array().into_iter().zip(best_at.to_array()) {
-        let at = at as usize;
-        if area > best.0 || (area == best.0 && at < best.1) {
-            best = (area, at);
-        }
-    }
-    best
+    earliest_largest(best_area, best_at)
 }
 
 /// The frame on origin `o` and the best two of `candidates` (samples of its segment near

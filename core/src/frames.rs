@@ -90,9 +90,10 @@ impl<'a> MotionInput<'a> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrameSample {
     px: [u32; 2],
-    /// The label, plus [`UNTRACKED`] if the flow lost the point: one compare tests both
-    /// in [`build_frame`]'s scan.
-    key: u32,
+    /// [`column_key`] of the column `px[0]` and the key: the label, plus [`UNTRACKED`] if
+    /// the flow lost the point. One compare tests both, and one more the column, in
+    /// [`build_frame`]'s scan.
+    column_key: u64,
     px_t1: [Real; 2],
     p_t: Point3<Real>,
     p_t1: Point3<Real>,
@@ -102,23 +103,38 @@ impl FrameSample {
     /// An unused sample, for sizing scratch arrays (`[FrameSample::EMPTY; N]`).
     pub const EMPTY: Self = Self {
         px: [0, 0],
-        key: UNTRACKED,
+        column_key: column_key(0, UNTRACKED),
         px_t1: [0.0, 0.0],
         p_t: Point3::new(0.0, 0.0, 0.0),
         p_t1: Point3::new(0.0, 0.0, 0.0),
     };
 }
 
-/// Flag of [`FrameSample::key`]: the point has no position at `t+1`.
+/// Flag of a [`FrameSample`]'s key: the point has no position at `t+1`.
 const UNTRACKED: u32 = 1 << 16;
 
+/// A column `x` in the low half, a sample's key in the high half. For `x_lo` and `span`
+/// below 2³¹, `column_key(x, key) - column_key(x_lo, k) <= span` (wrapping) holds exactly
+/// when `key == k` and `x - x_lo <= span` (wrapping) do: a different key moves the
+/// difference by at least 2³² minus less than 2³¹.
+const fn column_key(x: u32, key: u32) -> u64 {
+    x as u64 | (key as u64) << 32
+}
+
+/// Bound below which [`column_key`]'s single compare is exact.
+const COLUMN_KEY_EXACT_BELOW: u32 = 1 << 31;
+
 impl FrameSample {
+    const fn key(&self) -> u32 {
+        (self.column_key >> 32) as u32
+    }
+
     const fn label(&self) -> u16 {
-        self.key as u16
+        self.key() as u16
     }
 
     const fn tracked(&self) -> bool {
-        self.key & UNTRACKED == 0
+        self.key() & UNTRACKED == 0
     }
 }
 
@@ -378,7 +394,7 @@ fn track(
 ) -> FrameSample {
     let mut sample = FrameSample {
         px: [x as u32, y as u32],
-        key: u32::from(label) | UNTRACKED,
+        column_key: column_key(x as u32, u32::from(label) | UNTRACKED),
         p_t,
         ..FrameSample::EMPTY
     };
@@ -387,7 +403,7 @@ fn track(
     };
     let (u1, v1) = (x as Real + dx, y as Real + dy);
     if let Some(z1) = local_depth(&input.depth_t1, u1, v1, cfg) {
-        sample.key = u32::from(label);
+        sample.column_key = column_key(x as u32, u32::from(label));
         sample.px_t1 = [u1, v1];
         sample.p_t1 = input.intrinsics.back_project(u1, v1, z1);
     }
@@ -546,7 +562,7 @@ fn build_frame_listing<const CAP: usize>(
     let key = u32::from(o.label());
     // Tracked, same label, columns within reach. (The origin itself passes: the listing
     // skips its place, the fallback its pixel.)
-    let candidate = |s: &FrameSample| (s.px[0].wrapping_sub(x_lo) <= x_span) & (s.key == key);
+    let candidate = |s: &FrameSample| (s.px[0].wrapping_sub(x_lo) <= x_span) & (s.key() == key);
     // The window's candidates, listed without a branch per sample (the column test is a
     // coin flip for the branch predictor), in two runs around the origin's place (no
     // other sample has its pixel). A write at `CAP` wraps and overwrites the first entry
@@ -556,14 +572,14 @@ fn build_frame_listing<const CAP: usize>(
         let own = i.wrapping_sub(first).min(window.len());
         let (before, from_own) = window.split_at(own);
         let after = from_own.get(1..).unwrap_or(&[]);
+        let runs = [(0, before), (own + 1, after)];
         let listed = &mut scratch.listed;
-        let mut count = 0;
-        for (start, run) in [(0, before), (own + 1, after)] {
-            for (k, s) in (start..).zip(run) {
-                listed[count & (CAP - 1)] = k as u16;
-                count += usize::from(candidate(s));
-            }
-        }
+        let count = if x_lo < COLUMN_KEY_EXACT_BELOW && x_span < COLUMN_KEY_EXACT_BELOW {
+            let (base, span) = (column_key(x_lo, key), u64::from(x_span));
+            list::<CAP>(runs, listed, |s| s.column_key.wrapping_sub(base) <= span)
+        } else {
+            list::<CAP>(runs, listed, candidate)
+        };
         // At `CAP` the next write already wrapped.
         if count < CAP {
             return best_triangle_listed(o, window, count, scratch, cfg);
@@ -574,6 +590,25 @@ fn build_frame_listing<const CAP: usize>(
         window.iter().filter(|s| candidate(s) && s.px != o.px),
         cfg,
     )
+}
+
+/// Writes the places of the samples of `runs` (each with its first place) that pass
+/// `candidate` to `listed`, without a branch per sample; returns how many passed. A
+/// write at `CAP` wraps (see [`build_frame_listing`]).
+#[inline]
+fn list<const CAP: usize>(
+    runs: [(usize, &[FrameSample]); 2],
+    listed: &mut [u16; LISTED_ON_STACK],
+    candidate: impl Fn(&FrameSample) -> bool,
+) -> usize {
+    let mut count = 0;
+    for (start, run) in runs {
+        for (k, s) in (start..).zip(run) {
+            listed[count & (CAP - 1)] = k as u16;
+            count += usize::from(candidate(s));
+        }
+    }
+    count
 }
 
 /// Room for the candidates [`build_frame`] lists on the stack (2 bytes an entry, and 4
@@ -1103,6 +1138,31 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// [`column_key`]'s single compare is the column test and the key test, near the
+        /// range's edges and anywhere below [`COLUMN_KEY_EXACT_BELOW`].
+        #[test]
+        fn column_key_compare_is_the_column_and_key_tests(
+            x_lo in proptest::prop_oneof![0u32..100, (1u32 << 31) - 100..1 << 31],
+            x_span in proptest::prop_oneof![0u32..100, (1u32 << 31) - 100..1 << 31],
+            dx in -200i64..200,
+            x_far in 0u32..1 << 31,
+            far: bool,
+            key in proptest::prop_oneof![0u32..3, (1u32 << 17) - 3..1 << 17],
+            other in proptest::prop_oneof![0u32..3, (1u32 << 17) - 3..1 << 17],
+        ) {
+            let x = if far {
+                x_far
+            } else {
+                (i64::from(x_lo) + dx).clamp(0, (1 << 31) - 1) as u32
+            };
+            let one = column_key(x, other).wrapping_sub(column_key(x_lo, key))
+                <= u64::from(x_span);
+            let two = x.wrapping_sub(x_lo) <= x_span && other == key;
+            proptest::prop_assert_eq!(one, two);
+        }
+    }
+
+    proptest::proptest! {
         /// The listed fast path of [`build_frame`], its fallback past the listing's
         /// capacity (reached with a capacity of 8) and that fallback
         /// ([`best_triangle`]) on every window pick the frame the plain scan picks, bit
@@ -1130,7 +1190,10 @@ mod tests {
                     );
                     FrameSample {
                         px: [x * 3, y * 3],
-                        key: u32::from(label) | if tracked { 0 } else { UNTRACKED },
+                        column_key: column_key(
+                            x * 3,
+                            u32::from(label) | if tracked { 0 } else { UNTRACKED },
+                        ),
                         px_t1: [0.0; 2],
                         p_t,
                         p_t1: p_t + Vector3::new(0.001, 0.0, 0.0),

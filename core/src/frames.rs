@@ -25,12 +25,13 @@
 use core::hint::select_unpredictable;
 
 use nalgebra::{Point3, Vector3};
+use wide::f32x4;
 
 use crate::{
     Config, Error, ImageView, Intrinsics, Twist,
     error::{Buffer, check_len},
     image::{MAX_DEPTH_M, valid_depth},
-    math::{Real, floor},
+    math::{Real, floor, sqrt4},
     rng::Pcg32,
     se3::{spatial_twist, try_frame_from_points},
 };
@@ -89,9 +90,10 @@ impl<'a> MotionInput<'a> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrameSample {
     px: [u32; 2],
-    /// The label, plus [`UNTRACKED`] if the flow lost the point: one compare tests both
-    /// in [`build_frame`]'s scan.
-    key: u32,
+    /// [`column_key`] of the column `px[0]` and the key: the label, plus [`UNTRACKED`] if
+    /// the flow lost the point. One compare tests both, and one more the column, in
+    /// [`build_frame`]'s scan.
+    column_key: u64,
     px_t1: [Real; 2],
     p_t: Point3<Real>,
     p_t1: Point3<Real>,
@@ -101,23 +103,38 @@ impl FrameSample {
     /// An unused sample, for sizing scratch arrays (`[FrameSample::EMPTY; N]`).
     pub const EMPTY: Self = Self {
         px: [0, 0],
-        key: UNTRACKED,
+        column_key: column_key(0, UNTRACKED),
         px_t1: [0.0, 0.0],
         p_t: Point3::new(0.0, 0.0, 0.0),
         p_t1: Point3::new(0.0, 0.0, 0.0),
     };
 }
 
-/// Flag of [`FrameSample::key`]: the point has no position at `t+1`.
+/// Flag of a [`FrameSample`]'s key: the point has no position at `t+1`.
 const UNTRACKED: u32 = 1 << 16;
 
+/// A column `x` in the low half, a sample's key in the high half. For `x_lo` and `span`
+/// below 2³¹, `column_key(x, key) - column_key(x_lo, k) <= span` (wrapping) holds exactly
+/// when `key == k` and `x - x_lo <= span` (wrapping) do: a different key moves the
+/// difference by at least 2³² minus less than 2³¹.
+const fn column_key(x: u32, key: u32) -> u64 {
+    x as u64 | (key as u64) << 32
+}
+
+/// Bound below which [`column_key`]'s single compare is exact.
+const COLUMN_KEY_EXACT_BELOW: u32 = 1 << 31;
+
 impl FrameSample {
+    const fn key(&self) -> u32 {
+        (self.column_key >> 32) as u32
+    }
+
     const fn label(&self) -> u16 {
-        self.key as u16
+        self.key() as u16
     }
 
     const fn tracked(&self) -> bool {
-        self.key & UNTRACKED == 0
+        self.key() & UNTRACKED == 0
     }
 }
 
@@ -202,6 +219,23 @@ pub fn create_frames(
     samples: &mut [FrameSample],
     frames: &mut [BodyFrame],
 ) -> Result<FrameSet, Error> {
+    create_frames_with_twists(input, cfg, samples, frames, |_, _| {})
+}
+
+/// [`create_frames`], handing each kept frame's twist to `on_twist(place, twist)` (its
+/// place in `frames`): the twist a frame is checked with is the one [`compute_twists`]
+/// gives it, so [`crate::pipeline::update_mask`] takes CalcBFIFs from here instead of
+/// computing every twist twice.
+///
+/// # Errors
+/// As [`create_frames`].
+pub(crate) fn create_frames_with_twists(
+    input: &MotionInput<'_>,
+    cfg: &Config,
+    samples: &mut [FrameSample],
+    frames: &mut [BodyFrame],
+    mut on_twist: impl FnMut(usize, Twist),
+) -> Result<FrameSet, Error> {
     cfg.check()?;
     let n = cfg.frame_samples;
     check_len(Buffer::Samples, n, samples.len())?;
@@ -220,18 +254,20 @@ pub fn create_frames(
     };
 
     let mut count = 0;
+    let mut scratch = TriangleScratch::new();
     for (i, origin) in samples.iter().enumerate() {
         if !origin.tracked() {
             continue;
         }
-        let Some(frame) = build_frame(input, cfg, samples, i) else {
+        let Some(frame) = build_frame(input, cfg, samples, i, &mut scratch) else {
             continue;
         };
-        if frame.twist(&space_origin).is_none() {
+        let Some(twist) = frame.twist(&space_origin) else {
             continue;
-        }
+        };
         if let Some(slot) = frames.get_mut(count) {
             *slot = frame;
+            on_twist(count, twist);
             count += 1;
         }
     }
@@ -358,7 +394,7 @@ fn track(
 ) -> FrameSample {
     let mut sample = FrameSample {
         px: [x as u32, y as u32],
-        key: u32::from(label) | UNTRACKED,
+        column_key: column_key(x as u32, u32::from(label) | UNTRACKED),
         p_t,
         ..FrameSample::EMPTY
     };
@@ -367,7 +403,7 @@ fn track(
     };
     let (u1, v1) = (x as Real + dx, y as Real + dy);
     if let Some(z1) = local_depth(&input.depth_t1, u1, v1, cfg) {
-        sample.key = u32::from(label);
+        sample.column_key = column_key(x as u32, u32::from(label));
         sample.px_t1 = [u1, v1];
         sample.p_t1 = input.intrinsics.back_project(u1, v1, z1);
     }
@@ -466,8 +502,32 @@ fn build_frame(
     cfg: &Config,
     samples: &[FrameSample],
     i: usize,
+    scratch: &mut TriangleScratch,
 ) -> Option<BodyFrame> {
-    build_frame_listing::<LISTED_ON_STACK>(input, cfg, samples, i)
+    build_frame_listing::<LISTED_ON_STACK>(input, cfg, samples, i, scratch)
+}
+
+/// Scratch of [`build_frame`] for the candidates of one origin, on the stack of
+/// [`create_frames`] once for all origins (filling it for each would cost more than the
+/// search): an origin reads only the entries it wrote.
+struct TriangleScratch {
+    /// Window places of the listed candidates.
+    listed: [u16; LISTED_ON_STACK],
+    /// Distance of each listed candidate from the origin (zero if outside the limits).
+    dist: [Real; LISTED_ON_STACK],
+    /// Each listed candidate's point at `t`, component by component (`x` NaN once it is
+    /// out of the running for the third point).
+    kept: [[Real; LISTED_ON_STACK]; 3],
+}
+
+impl TriangleScratch {
+    const fn new() -> Self {
+        Self {
+            listed: [0; LISTED_ON_STACK],
+            dist: [0.0; LISTED_ON_STACK],
+            kept: [[0.0; LISTED_ON_STACK]; 3],
+        }
+    }
 }
 
 /// [`build_frame`], listing fewer than `CAP` candidates (a power of two, at most
@@ -478,6 +538,7 @@ fn build_frame_listing<const CAP: usize>(
     cfg: &Config,
     samples: &[FrameSample],
     i: usize,
+    scratch: &mut TriangleScratch,
 ) -> Option<BodyFrame> {
     const { assert!(CAP.is_power_of_two() && CAP <= LISTED_ON_STACK) };
     let o = samples.get(i)?;
@@ -499,25 +560,29 @@ fn build_frame_listing<const CAP: usize>(
     let x_lo = (ox - reach_px).clamp(0, i64::from(u32::MAX)) as u32;
     let x_span = ((ox + reach_px).clamp(0, i64::from(u32::MAX)) as u32).saturating_sub(x_lo);
     let key = u32::from(o.label());
-    // Tracked, same label, columns within reach. (The origin itself passes: it is left
-    // out by its pixel in the passes that follow.)
-    let candidate = |s: &FrameSample| (s.px[0].wrapping_sub(x_lo) <= x_span) & (s.key == key);
+    // Tracked, same label, columns within reach. (The origin itself passes: the listing
+    // skips its place, the fallback its pixel.)
+    let candidate = |s: &FrameSample| (s.px[0].wrapping_sub(x_lo) <= x_span) & (s.key() == key);
     // The window's candidates, listed without a branch per sample (the column test is a
-    // coin flip for the branch predictor). A write at `CAP` wraps and overwrites the
-    // first entry (the mask only spares a bounds check); such a list is not used. Window
-    // places fit `u16` (checked first).
+    // coin flip for the branch predictor), in two runs around the origin's place (no
+    // other sample has its pixel). A write at `CAP` wraps and overwrites the first entry
+    // (the mask only spares a bounds check); such a list is not used. Window places fit
+    // `u16` (checked first).
     if window.len() <= 1 << 16 {
-        let mut listed = [0u16; CAP];
-        let mut count = 0;
-        for (k, s) in window.iter().enumerate() {
-            listed[count & (CAP - 1)] = k as u16;
-            count += usize::from(candidate(s));
-        }
+        let own = i.wrapping_sub(first).min(window.len());
+        let (before, from_own) = window.split_at(own);
+        let after = from_own.get(1..).unwrap_or(&[]);
+        let runs = [(0, before), (own + 1, after)];
+        let listed = &mut scratch.listed;
+        let count = if x_lo < COLUMN_KEY_EXACT_BELOW && x_span < COLUMN_KEY_EXACT_BELOW {
+            let (base, span) = (column_key(x_lo, key), u64::from(x_span));
+            list::<CAP>(runs, listed, |s| s.column_key.wrapping_sub(base) <= span)
+        } else {
+            list::<CAP>(runs, listed, candidate)
+        };
         // At `CAP` the next write already wrapped.
-        if count < CAP
-            && let Some(listed) = listed.get_mut(..count)
-        {
-            return best_triangle_listed(o, window, listed, cfg);
+        if count < CAP {
+            return best_triangle_listed(o, window, count, scratch, cfg);
         }
     }
     best_triangle(
@@ -525,6 +590,25 @@ fn build_frame_listing<const CAP: usize>(
         window.iter().filter(|s| candidate(s) && s.px != o.px),
         cfg,
     )
+}
+
+/// Writes the places of the samples of `runs` (each with its first place) that pass
+/// `candidate` to `listed`, without a branch per sample; returns how many passed. A
+/// write at `CAP` wraps (see [`build_frame_listing`]).
+#[inline]
+fn list<const CAP: usize>(
+    runs: [(usize, &[FrameSample]); 2],
+    listed: &mut [u16; LISTED_ON_STACK],
+    candidate: impl Fn(&FrameSample) -> bool,
+) -> usize {
+    let mut count = 0;
+    for (start, run) in runs {
+        for (k, s) in (start..).zip(run) {
+            listed[count & (CAP - 1)] = k as u16;
+            count += usize::from(candidate(s));
+        }
+    }
+    count
 }
 
 /// Room for the candidates [`build_frame`] lists on the stack (2 bytes an entry, and 4
@@ -552,60 +636,160 @@ fn prunable(dj: Real, db: Real) -> bool {
         && (AREA_BOUND_MIN..=AREA_BOUND_MAX).contains(&(dj * db))
 }
 
-/// [`best_triangle`] over `window[k]` for `k` in `listed` (in that order), bit for bit:
-/// one pass finds the second point and keeps the candidates within the side limits with
-/// their distance from the origin, the other looks for the third point among those only.
-/// `listed` is overwritten.
+/// [`best_triangle`] over `window[k]` for `k` in the first `count` entries of
+/// `scratch.listed` (in that order; the origin's place is not listed), bit for bit. The
+/// candidates' points are gathered component by component; one pass, four candidates
+/// at a time, finds the second point and drops the candidates outside the side limits,
+/// the other looks for the third point among the rest, four at a time too. Each lane
+/// keeps the earliest of its best; the earliest of the lanes' equal best wins, as a scan
+/// in order picks.
 fn best_triangle_listed(
     o: &FrameSample,
     window: &[FrameSample],
-    listed: &mut [u16],
+    count: usize,
+    scratch: &mut TriangleScratch,
     cfg: &Config,
 ) -> Option<BodyFrame> {
+    const MASK: usize = LISTED_ON_STACK - 1;
+    let TriangleScratch {
+        listed,
+        dist,
+        kept: [xs, ys, zs],
+    } = scratch;
+    let listed = listed.get(..count)?;
+    // `count < LISTED_ON_STACK`, so the masked places never wrap. A NaN coordinate fails
+    // every test below: so are the places after the last candidate (up to a multiple of
+    // four) left out.
+    for (at, &k) in listed.iter().enumerate() {
+        let p = window
+            .get(usize::from(k))
+            .map_or([Real::NAN; 3], |s| s.p_t.into());
+        xs[at & MASK] = p[0];
+        ys[at & MASK] = p[1];
+        zs[at & MASK] = p[2];
+    }
+    let fours = count.div_ceil(4);
+    for x in xs.get_mut(count..fours * 4).unwrap_or(&mut []) {
+        *x = Real::NAN;
+    }
     let (min_side, max_side) = (cfg.frame_min_side_m, cfg.frame_max_side_m);
-    let mut dist = [0.0 as Real; LISTED_ON_STACK];
-    let mut near = 0;
-    // The farthest so far as (place in `listed`, distance); a kept distance is never
-    // `-∞`, so the first kept one always replaces the start. Selects, not branches: the
-    // tests wait on a square root, so a mispredicted branch would cost its latency too.
-    let mut best_j = (usize::MAX, Real::NEG_INFINITY);
-    for at in 0..listed.len() {
-        let Some(&k) = listed.get(at) else { break };
-        let Some(s) = window.get(usize::from(k)) else {
-            continue;
-        };
-        if s.px == o.px {
-            continue;
-        }
-        let d = (s.p_t - o.p_t).norm();
-        let keep = (d >= min_side) & (d <= max_side);
-        if let (Some(slot), Some(slot_d)) = (listed.get_mut(near), dist.get_mut(near)) {
-            *slot = k;
-            *slot_d = d;
-        }
-        best_j = select_unpredictable(keep & (d > best_j.1), (near, d), best_j);
-        near += usize::from(keep);
+    let splat = f32x4::splat;
+    let [ox, oy, oz] = [o.p_t.x, o.p_t.y, o.p_t.z].map(splat);
+    let (min4, max4) = (splat(min_side), splat(max_side));
+    // The second point: the farthest candidate within the side limits. The distance of
+    // each is kept (zero for one outside, whose `x` turns NaN).
+    let mut farthest = splat(Real::NEG_INFINITY);
+    let mut farthest_at = splat(0.0);
+    let mut at = f32x4::new([0.0, 1.0, 2.0, 3.0]);
+    let (x4, _) = xs.as_chunks_mut::<4>();
+    let (y4, _) = ys.as_chunks::<4>();
+    let (z4, _) = zs.as_chunks::<4>();
+    let (d4, _) = dist.as_chunks_mut::<4>();
+    for (((x, y), z), d) in x4.iter_mut().zip(y4).zip(z4).zip(d4).take(fours) {
+        let here = at;
+        at += splat(4.0);
+        let sx = f32x4::new(*x);
+        let (dx, dy, dz) = (sx - ox, f32x4::new(*y) - oy, f32x4::new(*z) - oz);
+        let db = sqrt4((dx * dx + dy * dy) + dz * dz);
+        let keep = db.simd_ge(min4) & db.simd_le(max4);
+        let farther = keep & db.simd_gt(farthest);
+        farthest = farther.select(db, farthest);
+        farthest_at = farther.select(here, farthest_at);
+        *d = keep.select(db, splat(0.0)).to_array();
+        *x = keep.select(sx, splat(Real::NAN)).to_array();
     }
-    let (j_at, dj) = best_j;
+    let (dj, j_at) = earliest_largest(farthest, farthest_at);
+    if dj == Real::NEG_INFINITY {
+        return None;
+    }
     let j = window.get(usize::from(*listed.get(j_at)?))?;
-    // The largest so far as (sample, doubled area); the start `-∞` prunes nothing, and a
-    // passing area is never `-∞`. Selects, not branches, as for the second point.
-    let mut best_k = (o, Real::NEG_INFINITY);
-    for (&k, &db) in listed.iter().zip(dist.iter()).take(near) {
+    // The second point is not the third.
+    if let Some(x) = xs.get_mut(j_at) {
+        *x = Real::NAN;
+    }
+    let best = third_point_of_kept(o, (j, dj), [&*xs, &*ys, &*zs], dist, fours, cfg);
+    let kk = window.get(usize::from(*listed.get(best.1)?))?;
+    triangle_frame(o, j, (kk, best.0), cfg)
+}
+
+/// The largest of four lanes' values and its place (`at`, whole numbers), the smallest
+/// place among equal ones; `(-∞, ·)` if every value is `-∞`.
+fn earliest_largest(value: f32x4, at: f32x4) -> (Real, usize) {
+    let mut best = (Real::NEG_INFINITY, usize::MAX);
+    for (v, at) in value.to_array().into_iter().zip(at.to_array()) {
+        let at = at as usize;
+        if v > best.0 || (v == best.0 && at < best.1) {
+            best = (v, at);
+        }
+    }
+    best
+}
+
+/// [`third_point`] over the first `4·fours` kept candidates (points `xyz`, distances
+/// `dist` from `o`; a NaN `x` fails), four lanes at once: the same operations in the same
+/// order, lane by lane. Returns (doubled area, place) of the pick: the largest area, the
+/// earliest place among equal ones, as a scan in order picks (`-∞` if none).
+fn third_point_of_kept(
+    o: &FrameSample,
+    (j, dj): (&FrameSample, Real),
+    xyz: [&[Real; LISTED_ON_STACK]; 3],
+    dist: &[Real; LISTED_ON_STACK],
+    fours: usize,
+    cfg: &Config,
+) -> (Real, usize) {
+    let (min_side, max_side) = (cfg.frame_min_side_m, cfg.frame_max_side_m);
+    let splat = f32x4::splat;
+    let a = j.p_t - o.p_t;
+    let [ox, oy, oz] = [o.p_t.x, o.p_t.y, o.p_t.z].map(splat);
+    let [jx, jy, jz] = [j.p_t.x, j.p_t.y, j.p_t.z].map(splat);
+    let [ax, ay, az] = [a.x, a.y, a.z].map(splat);
+    let (min4, max4, dj4) = (splat(min_side), splat(max_side), splat(dj));
+    let sin_dj = splat(cfg.frame_min_sin * dj);
+    // Every kept `db` lies within the side limits, and rounded products are monotone: if
+    // both limits are prunable with `dj`, every kept candidate is (a dropped one, with
+    // `db` zero, never wins anyway).
+    let all_prunable = prunable(dj, min_side) && prunable(dj, max_side);
+    // Each lane keeps its own pick (the earliest of its largest areas) and place; `best`
+    // is the largest of the lanes' areas.
+    let mut best_area = splat(Real::NEG_INFINITY);
+    let mut best_at = splat(0.0);
+    let mut best = Real::NEG_INFINITY;
+    let mut at = f32x4::new([0.0, 1.0, 2.0, 3.0]);
+    let [xs, ys, zs] = xyz.map(|c| c.as_chunks::<4>().0);
+    let (ds, _) = dist.as_chunks::<4>();
+    for (((x, y), z), db) in xs.iter().zip(ys).zip(zs).zip(ds).take(fours) {
+        let here = at;
+        at += splat(4.0);
+        let db = f32x4::new(*db);
         // `|a × b| <= |a|·|b|`: a candidate whose bound is below the best area so far
-        // cannot win (ties keep the earlier one), so it is skipped before any arithmetic.
-        // The slack covers the rounding of both sides (a few units in the last place),
-        // which holds while the squares inside the norms are normal numbers.
-        let bound = dj * db;
-        if bound * AREA_BOUND_SLACK < best_k.1 && prunable(dj, db) {
+        // cannot win (ties keep the earlier one), so four such are skipped before any
+        // arithmetic. The slack covers the rounding of both sides (a few units in the
+        // last place), which holds while the squares inside the norms are normal numbers.
+        if all_prunable
+            && (dj4 * db * splat(AREA_BOUND_SLACK))
+                .simd_lt(splat(best))
+                .all()
+        {
             continue;
         }
-        let Some(s) = window.get(usize::from(k)) else {
-            continue;
-        };
-        best_k = third_point(o, (j, dj), (s, db), best_k, cfg);
+        let [sx, sy, sz] = [x, y, z].map(|c| f32x4::new(*c));
+        let (dx, dy, dz) = (sx - jx, sy - jy, sz - jz);
+        let djk = sqrt4((dx * dx + dy * dy) + dz * dz);
+        let (bx, by, bz) = (sx - ox, sy - oy, sz - oz);
+        let (c0, c1, c2) = (ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx);
+        let area = sqrt4((c0 * c0 + c1 * c1) + c2 * c2);
+        let larger = djk.simd_ge(min4)
+            & djk.simd_le(max4)
+            & area.simd_ge(sin_dj * db)
+            & area.simd_gt(best_area);
+        best_area = larger.select(area, best_area);
+        best_at = larger.select(here, best_at);
+        // No area is NaN: a plain comparison takes the larger.
+        let larger_of = |a: Real, b: Real| if a > b { a } else { b };
+        let [a0, a1, a2, a3] = best_area.to_array();
+        best = larger_of(larger_of(a0, a1), larger_of(a2, a3));
     }
-    triangle_frame(o, j, best_k, cfg)
+    earliest_largest(best_area, best_at)
 }
 
 /// The frame on origin `o` and the best two of `candidates` (samples of its segment near
@@ -954,6 +1138,31 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// [`column_key`]'s single compare is the column test and the key test, near the
+        /// range's edges and anywhere below [`COLUMN_KEY_EXACT_BELOW`].
+        #[test]
+        fn column_key_compare_is_the_column_and_key_tests(
+            x_lo in proptest::prop_oneof![0u32..100, (1u32 << 31) - 100..1 << 31],
+            x_span in proptest::prop_oneof![0u32..100, (1u32 << 31) - 100..1 << 31],
+            dx in -200i64..200,
+            x_far in 0u32..1 << 31,
+            far: bool,
+            key in proptest::prop_oneof![0u32..3, (1u32 << 17) - 3..1 << 17],
+            other in proptest::prop_oneof![0u32..3, (1u32 << 17) - 3..1 << 17],
+        ) {
+            let x = if far {
+                x_far
+            } else {
+                (i64::from(x_lo) + dx).clamp(0, (1 << 31) - 1) as u32
+            };
+            let one = column_key(x, other).wrapping_sub(column_key(x_lo, key))
+                <= u64::from(x_span);
+            let two = x.wrapping_sub(x_lo) <= x_span && other == key;
+            proptest::prop_assert_eq!(one, two);
+        }
+    }
+
+    proptest::proptest! {
         /// The listed fast path of [`build_frame`], its fallback past the listing's
         /// capacity (reached with a capacity of 8) and that fallback
         /// ([`best_triangle`]) on every window pick the frame the plain scan picks, bit
@@ -981,7 +1190,10 @@ mod tests {
                     );
                     FrameSample {
                         px: [x * 3, y * 3],
-                        key: u32::from(label) | if tracked { 0 } else { UNTRACKED },
+                        column_key: column_key(
+                            x * 3,
+                            u32::from(label) | if tracked { 0 } else { UNTRACKED },
+                        ),
                         px_t1: [0.0; 2],
                         p_t,
                         p_t1: p_t + Vector3::new(0.001, 0.0, 0.0),
@@ -999,13 +1211,15 @@ mod tests {
             )
             .unwrap();
             let cfg = Config::PAPER;
+            // One scratch for every origin and both capacities, as in `create_frames`.
+            let mut scratch = TriangleScratch::new();
             for i in 0..samples.len() {
                 let plain = build_frame_plain(&input, &cfg, &samples, i);
                 proptest::prop_assert_eq!(
-                    build_frame(&input, &cfg, &samples, i), plain, "origin {}", i
+                    build_frame(&input, &cfg, &samples, i, &mut scratch), plain, "origin {}", i
                 );
                 proptest::prop_assert_eq!(
-                    build_frame_listing::<8>(&input, &cfg, &samples, i),
+                    build_frame_listing::<8>(&input, &cfg, &samples, i, &mut scratch),
                     plain,
                     "origin {} (capacity 8)", i
                 );

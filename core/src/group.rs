@@ -30,7 +30,7 @@ use wide::{f32x4, u8x16};
 use crate::{
     Config, Error, Twist,
     error::{Buffer, check_len},
-    math::{Real, exp, sqrt},
+    math::{Real, exp, sqrt, sqrt4},
     union_find::{find, union},
 };
 
@@ -500,26 +500,6 @@ fn four_bins(b: f32x4) -> [u8; 4] {
     // (or `-0`, which truncates to 0), so the conversion is exact and never saturates.
     let b = b.simd_lt(f32x4::splat(KDE_BINS as Real)).select(b, last);
     b.fast_trunc_int().to_array().map(|x| x as u8)
-}
-
-/// Square roots of four lanes, correctly rounded as [`sqrt`] is: one instruction where
-/// the target has one (SSE, WebAssembly SIMD, NEON on aarch64; IEEE 754 square roots
-/// are exact), lane by lane otherwise.
-#[inline]
-fn sqrt4(x: f32x4) -> f32x4 {
-    #[cfg(any(
-        target_feature = "sse",
-        target_feature = "simd128",
-        all(target_feature = "neon", target_arch = "aarch64")
-    ))]
-    let root = x.sqrt();
-    #[cfg(not(any(
-        target_feature = "sse",
-        target_feature = "simd128",
-        all(target_feature = "neon", target_arch = "aarch64")
-    )))]
-    let root = f32x4::new(x.to_array().map(sqrt));
-    root
 }
 
 /// The squared distances [`Twist::distance`] takes the root of, from one twist (`ti`,

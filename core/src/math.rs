@@ -3,12 +3,34 @@
 //!
 //! `sqrt` is correctly rounded by IEEE 754 everywhere, so nalgebra's `norm` is safe to use.
 
+use wide::f32x4;
+
 /// The scalar type of the crate.
 pub type Real = f32;
 
 #[inline]
 pub(crate) fn sqrt(x: Real) -> Real {
     libm::sqrtf(x)
+}
+
+/// Square roots of four lanes, correctly rounded as [`sqrt`] is: one instruction where
+/// the target has one (SSE, WebAssembly SIMD, NEON on aarch64; IEEE 754 square roots
+/// are exact), lane by lane otherwise.
+#[inline]
+pub(crate) fn sqrt4(x: f32x4) -> f32x4 {
+    #[cfg(any(
+        target_feature = "sse",
+        target_feature = "simd128",
+        all(target_feature = "neon", target_arch = "aarch64")
+    ))]
+    let root = x.sqrt();
+    #[cfg(not(any(
+        target_feature = "sse",
+        target_feature = "simd128",
+        all(target_feature = "neon", target_arch = "aarch64")
+    )))]
+    let root = f32x4::new(x.to_array().map(sqrt));
+    root
 }
 
 #[inline]

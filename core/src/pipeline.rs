@@ -4,12 +4,17 @@
 //! A step is CreateFrames → CalcBFIFs → GroupBFIFs (twist groups, then groups that two
 //! rigid motions explain split: [`crate::split`]) → CorrectMask; each stage is also
 //! callable on its own ([`create_frames`], [`compute_twists`], [`group_frames`],
-//! [`correct_mask`]) for per-stage timing or display.
+//! [`correct_mask`]) for per-stage timing or display. In a step, CalcBFIFs costs nothing:
+//! CreateFrames checks each frame by its twist and hands that twist over, bit for bit
+//! what [`compute_twists`] gives.
+//!
+//! [`create_frames`]: crate::frames::create_frames
+//! [`compute_twists`]: crate::frames::compute_twists
 
 use crate::{
     Config, Error, ImageView, Twist,
     error::{Buffer, check_len},
-    frames::{BodyFrame, FrameSample, FrameSet, MotionInput, compute_twists, create_frames},
+    frames::{BodyFrame, FrameSample, FrameSet, MotionInput, create_frames_with_twists},
     group::{GroupInfo, GroupScratch, GroupScratchLen, Grouping, group_frames},
     mask::{FrameGroups, MaskReport, MaskScratch, MaskScratchLen, correct_mask},
     split::split_mixed_groups,
@@ -138,7 +143,8 @@ pub struct StepReport {
 pub enum Stage {
     /// CreateFrames finished.
     Frames,
-    /// CalcBFIFs (the twists) finished.
+    /// CalcBFIFs (the twists) finished: in a step they come with the frames, so this
+    /// follows [`Stage::Frames`] at once.
     Twists,
     /// GroupBFIFs finished.
     Grouping,
@@ -178,7 +184,13 @@ pub fn update_mask_observed(
     cfg.check()?;
     let (width, height) = input.size();
     ws.check(&WorkspaceLen::for_config(cfg, width, height))?;
-    let frames = create_frames(input, cfg, ws.samples, ws.frames)?;
+    // CreateFrames checks each frame by its twist: that is CalcBFIFs' result, kept.
+    let twists_out = &mut *ws.twists;
+    let frames = create_frames_with_twists(input, cfg, ws.samples, ws.frames, |at, twist| {
+        if let Some(slot) = twists_out.get_mut(at) {
+            *slot = twist;
+        }
+    })?;
     on_stage(Stage::Frames);
     let count = frames.count;
     let (Some(frame_list), Some(twists), Some(labels)) = (
@@ -192,7 +204,6 @@ pub fn update_mask_observed(
             got: 0,
         });
     };
-    compute_twists(frame_list, &frames.space_origin, twists)?;
     on_stage(Stage::Twists);
     for (l, f) in labels.iter_mut().zip(frame_list) {
         *l = f.label;
@@ -287,6 +298,7 @@ pub(crate) mod tests {
     use super::*;
     use crate::{
         Pose,
+        frames::{compute_twists, create_frames},
         synth::{
             SynthBox,
             fixture::{Rendered, box_at, render, spin_about},
@@ -456,6 +468,36 @@ pub(crate) mod tests {
             [Stage::Frames, Stage::Twists, Stage::Grouping, Stage::Mask]
         );
         assert_eq!(observed, (plain, plain_report));
+    }
+
+    #[test]
+    fn the_step_keeps_the_twists_calc_bfifs_computes() {
+        let r = render(&row(&[slide_y(0.01), Pose::identity()]), 160, 120);
+        let (w, h) = (r.width, r.height);
+        let cfg = Config::PAPER;
+        let input = MotionInput::new(
+            ImageView::packed(w, h, &r.labels_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t1).unwrap(),
+            ImageView::packed(w, h, &r.flow).unwrap(),
+            r.intrinsics,
+        )
+        .unwrap();
+        let mut ws = WorkspaceBuf::new(&cfg, w, h);
+        let mut view = ws.view();
+        let mut out = vec![0u16; w * h];
+        let static_t1 = ImageView::packed(w, h, &r.labels_t1).unwrap();
+        let report = update_mask(&input, &static_t1, &cfg, &mut view, &mut out).unwrap();
+        let n = report.frames.count;
+        assert!(n > 20, "{report:?}");
+        let mut expected = vec![Twist::ZERO; n];
+        compute_twists(
+            &view.frames[..n],
+            &report.frames.space_origin,
+            &mut expected,
+        )
+        .unwrap();
+        assert_eq!(&view.twists[..n], &expected[..]);
     }
 
     #[test]

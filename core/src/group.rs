@@ -626,32 +626,36 @@ const KEY_DENSITY_MAX: u32 = (1 << 24) - 1;
 /// Pass 3 (quick shift): writes into `attach[i]` the frame that frame `i` points at, or
 /// [`NONE`] for a mode. Among the pairs whose code `attaches_at`, a frame points at the
 /// partner of higher rank `(density, −index)` that is nearest (the code's bin), ties going
-/// to the higher rank. `keys` (`n` entries) is scratch.
+/// to the higher rank. `keys` (`n` entries) is scratch, and `density` is overwritten.
 ///
 /// Ranks are unique, so the result does not depend on the order the pairs are visited
 /// in. They are visited row by row, each row in order: then the frame already chosen
 /// (the incumbent) always has a lower index than the newcomer, and the newcomer ranks
 /// higher exactly when it is denser. So one `u32` key decides, the nearness in the top
-/// byte above the inverted density (up to [`KEY_DENSITY_MAX`]): smaller is better. Each
-/// frame's key is kept next to its choice, and frame `i`'s own along its row in registers.
+/// byte above the inverted density (up to [`KEY_DENSITY_MAX`]): smaller is better. The
+/// densities are inverted once, in place; each frame's key is kept next to its choice,
+/// and frame `i`'s own along its row in registers.
 fn attach_up(
     n: usize,
     pair_bin: &[u8],
-    density: &[u32],
+    density: &mut [u32],
     attaches_at: &[bool; 256],
     attach: &mut [u32],
     keys: &mut [u32],
 ) {
+    // Sparseness: the density inverted, so that the denser frame has the smaller key.
+    for d in density.iter_mut() {
+        *d = KEY_DENSITY_MAX - (*d).min(KEY_DENSITY_MAX);
+    }
+    let sparseness = &*density;
     // Codes that attach are below `ACROSS`, so every key is below `u32::MAX`: "no
     // attachment yet".
-    let key = |code: u8, density: u32| {
-        (u32::from(code & !ACROSS) << 24) | (KEY_DENSITY_MAX - density.min(KEY_DENSITY_MAX))
-    };
+    let key = |code: u8, sparse: u32| (u32::from(code & !ACROSS) << 24) | sparse;
     attach.fill(NONE);
     keys.fill(u32::MAX);
     let bound = codes_below(attaches_at);
     for (i, row) in pair_rows(n, pair_bin) {
-        let (Some(&own_density), Some(later_density)) = (density.get(i), density.get(i + 1..))
+        let (Some(&own_sparse), Some(later_sparse)) = (sparseness.get(i), sparseness.get(i + 1..))
         else {
             break;
         };
@@ -662,17 +666,17 @@ fn attach_up(
             break;
         };
         let mut best = (*own_up, *own_key);
-        // The pair of frame `i` with frame `i + 1 + k`, which has `later` links and the
-        // choice `(up, up_key)`.
+        // The pair of frame `i` with frame `i + 1 + k`, which has sparseness `later` and
+        // the choice `(up, up_key)`.
         let mut offer = |k: usize, code: u8, later: u32, up: &mut u32, up_key: &mut u32| {
-            if own_density < later {
+            if own_sparse > later {
                 // Frame `i` ranks lower: the later frame is a candidate for it.
                 let new = key(code, later);
                 if new < best.1 {
                     best = ((i + 1 + k) as u32, new);
                 }
             } else {
-                let new = key(code, own_density);
+                let new = key(code, own_sparse);
                 if new < *up_key {
                     *up = i as u32;
                     *up_key = new;
@@ -694,7 +698,7 @@ fn attach_up(
             Some((ks, ks_rest)),
         ) = (
             row.split_at_checked(chunked),
-            later_density.split_at_checked(chunked),
+            later_sparse.split_at_checked(chunked),
             later_up.split_at_mut_checked(chunked),
             later_keys.split_at_mut_checked(chunked),
         )
@@ -1187,7 +1191,7 @@ mod tests {
             let bins: Vec<u8> = (0..len).map(|k| codes[k % codes.len()]).collect();
             let density = &densities[..n];
             let (mut attach, mut near) = (vec![7u32; n], vec![3u32; n]);
-            attach_up(n, &bins, density, &attaches_at, &mut attach, &mut near);
+            attach_up(n, &bins, &mut density.to_vec(), &attaches_at, &mut attach, &mut near);
             proptest::prop_assert_eq!(attach, attach_up_pair_by_pair(n, &bins, density, &attaches_at));
         }
     }

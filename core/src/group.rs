@@ -246,37 +246,9 @@ pub fn group_frames(
     }
     // Pass 3 (quick shift): each frame points at its nearest linked frame of higher
     // density; ties in distance go to the denser frame. Only a mode has no such frame.
-    let rank =
-        |density: &[u32], i: usize| (density.get(i).copied().unwrap_or(0), u32::MAX - i as u32);
-    // `parent` is free until the union below: it holds the nearness of each frame's
-    // current attachment, so comparing with it needs no look-up of that pair's code.
-    attach.fill(NONE);
-    let attached_near = &mut *parent;
-    // Only the pairs whose codes attach are visited where a bound tells them (the
-    // closure still tests each code it is called with).
-    let attach_below = codes_below(&attaches_at);
-    for_each_pair_below(n, pair_bin, attach_below, |i, j, code| {
-        if !attaches_at[usize::from(code)] {
-            return;
-        }
-        let (low, high) = if rank(density, i) < rank(density, j) {
-            (i, j)
-        } else {
-            (j, i)
-        };
-        let (Some(current), Some(&d_old)) = (attach.get(low).copied(), attached_near.get(low))
-        else {
-            return;
-        };
-        let d_new = u32::from(nearness(code));
-        let better = current == NONE
-            || d_new < d_old
-            || (d_new == d_old && rank(density, high) > rank(density, current as usize));
-        if better && let (Some(a), Some(d)) = (attach.get_mut(low), attached_near.get_mut(low)) {
-            *a = high as u32;
-            *d = d_new;
-        }
-    });
+    // `parent` is free until the union below: it holds the key of each frame's current
+    // attachment.
+    attach_up(n, pair_bin, density, &attaches_at, attach, parent);
     for (i, p) in parent.iter_mut().enumerate() {
         *p = i as u32;
     }
@@ -626,15 +598,6 @@ fn pair_rows_mut(n: usize, pair_bin: &mut [u8]) -> impl Iterator<Item = (usize, 
     })
 }
 
-/// Calls `f(i, j, code)` for every pair `i < j` in the order pass 1 stored them.
-fn for_each_pair(n: usize, pair_bin: &[u8], mut f: impl FnMut(usize, usize, u8)) {
-    for (i, row) in pair_rows(n, pair_bin) {
-        for (k, &code) in row.iter().enumerate() {
-            f(i, i + 1 + k, code);
-        }
-    }
-}
-
 /// `bound` if `table` holds exactly for the codes below it, `None` if it is not of
 /// that form.
 fn codes_below(table: &[bool; 256]) -> Option<u8> {
@@ -655,37 +618,117 @@ fn add_links_below(row: &[u8], later: &mut [u32], bound: u8) -> u32 {
     own
 }
 
-/// [`for_each_pair`] for the pairs whose code is below `bound` (all pairs without one);
-/// `f` may be called for others too. Sixteen codes are compared at once, and only the
-/// ones below the bound are visited: a branch per code would be a coin flip.
-fn for_each_pair_below(
+/// Densities at or above this share one attachment key in [`attach_up`] (ties between
+/// them then go to the lower index). Reaching it takes `2^24` frames, whose pair codes
+/// alone would take `2^47` bytes.
+const KEY_DENSITY_MAX: u32 = (1 << 24) - 1;
+
+/// Pass 3 (quick shift): writes into `attach[i]` the frame that frame `i` points at, or
+/// [`NONE`] for a mode. Among the pairs whose code `attaches_at`, a frame points at the
+/// partner of higher rank `(density, −index)` that is nearest (the code's bin), ties going
+/// to the higher rank. `keys` (`n` entries) is scratch, and `density` is overwritten.
+///
+/// Ranks are unique, so the result does not depend on the order the pairs are visited
+/// in. They are visited row by row, each row in order: then the frame already chosen
+/// (the incumbent) always has a lower index than the newcomer, and the newcomer ranks
+/// higher exactly when it is denser. So one `u32` key decides, the nearness in the top
+/// byte above the inverted density (up to [`KEY_DENSITY_MAX`]): smaller is better. The
+/// densities are inverted once, in place; each frame's key is kept next to its choice,
+/// and frame `i`'s own along its row in registers.
+fn attach_up(
     n: usize,
     pair_bin: &[u8],
-    bound: Option<u8>,
-    mut f: impl FnMut(usize, usize, u8),
+    density: &mut [u32],
+    attaches_at: &[bool; 256],
+    attach: &mut [u32],
+    keys: &mut [u32],
 ) {
-    let Some(bound) = bound else {
-        return for_each_pair(n, pair_bin, f);
-    };
-    let bound16 = u8x16::splat(bound);
+    // Sparseness: the density inverted, so that the denser frame has the smaller key.
+    for d in density.iter_mut() {
+        *d = KEY_DENSITY_MAX - (*d).min(KEY_DENSITY_MAX);
+    }
+    let sparseness = &*density;
+    // Codes that attach are below `ACROSS`, so every key is below `u32::MAX`: "no
+    // attachment yet".
+    let key = |code: u8, sparse: u32| (u32::from(code & !ACROSS) << 24) | sparse;
+    attach.fill(NONE);
+    keys.fill(u32::MAX);
+    let bound = codes_below(attaches_at);
     for (i, row) in pair_rows(n, pair_bin) {
-        let (sixteens, rest) = row.as_chunks::<16>();
-        for (c, codes) in sixteens.iter().enumerate() {
-            let mut below = u8x16::new(*codes).simd_lt(bound16).to_bitmask();
-            while below != 0 {
-                let k = below.trailing_zeros() as usize;
-                below &= below - 1;
-                if let Some(&code) = codes.get(k) {
-                    f(i, i + 1 + c * 16 + k, code);
+        let (Some(&own_sparse), Some(later_sparse)) = (sparseness.get(i), sparseness.get(i + 1..))
+        else {
+            break;
+        };
+        let (Some((own_up, later_up)), Some((own_key, later_keys))) = (
+            attach.get_mut(i..).and_then(|s| s.split_first_mut()),
+            keys.get_mut(i..).and_then(|s| s.split_first_mut()),
+        ) else {
+            break;
+        };
+        let mut best = (*own_up, *own_key);
+        // The pair of frame `i` with frame `i + 1 + k`, which has sparseness `later` and
+        // the choice `(up, up_key)`.
+        let mut offer = |k: usize, code: u8, later: u32, up: &mut u32, up_key: &mut u32| {
+            if own_sparse > later {
+                // Frame `i` ranks lower: the later frame is a candidate for it.
+                let new = key(code, later);
+                if new < best.1 {
+                    best = ((i + 1 + k) as u32, new);
+                }
+            } else {
+                let new = key(code, own_sparse);
+                if new < *up_key {
+                    *up = i as u32;
+                    *up_key = new;
                 }
             }
-        }
-        let done = sixteens.len() * 16;
-        for (k, &code) in rest.iter().enumerate() {
-            if code < bound {
-                f(i, i + 1 + done + k, code);
+        };
+        // With a bound, sixteen codes are compared at once and only the ones below it are
+        // visited (a branch per code would be a coin flip); the rest of the row, or all
+        // of it without a bound, code by code.
+        let chunked = if bound.is_some() {
+            row.len() / 16 * 16
+        } else {
+            0
+        };
+        let (
+            Some((codes, codes_rest)),
+            Some((dens, dens_rest)),
+            Some((ups, ups_rest)),
+            Some((ks, ks_rest)),
+        ) = (
+            row.split_at_checked(chunked),
+            later_sparse.split_at_checked(chunked),
+            later_up.split_at_mut_checked(chunked),
+            later_keys.split_at_mut_checked(chunked),
+        )
+        else {
+            break;
+        };
+        let bound16 = u8x16::splat(bound.unwrap_or(0));
+        let sixteens = (codes
+            .as_chunks::<16>()
+            .0
+            .iter()
+            .zip(dens.as_chunks::<16>().0))
+        .zip(ups.as_chunks_mut::<16>().0.iter_mut())
+        .zip(ks.as_chunks_mut::<16>().0.iter_mut());
+        for (c, (((codes, dens), ups), ks)) in sixteens.enumerate() {
+            let mut below = u8x16::new(*codes).simd_lt(bound16).to_bitmask();
+            while below != 0 {
+                // Below 16: the mask has sixteen bits.
+                let k = below.trailing_zeros() as usize & 15;
+                below &= below - 1;
+                offer(c * 16 + k, codes[k], dens[k], &mut ups[k], &mut ks[k]);
             }
         }
+        let rest = codes_rest.iter().zip(dens_rest).zip(ups_rest).zip(ks_rest);
+        for (k, (((&code, &later), up), up_key)) in rest.enumerate() {
+            if attaches_at[usize::from(code)] {
+                offer(chunked + k, code, later, up, up_key);
+            }
+        }
+        (*own_up, *own_key) = best;
     }
 }
 
@@ -1023,6 +1066,44 @@ mod tests {
         assert!(r.groups.len() >= 2);
     }
 
+    /// Calls `f(i, j, code)` for every pair `i < j` in the order pass 1 stored them.
+    fn for_each_pair(n: usize, pair_bin: &[u8], mut f: impl FnMut(usize, usize, u8)) {
+        for (i, row) in pair_rows(n, pair_bin) {
+            for (k, &code) in row.iter().enumerate() {
+                f(i, i + 1 + k, code);
+            }
+        }
+    }
+
+    /// Pass 3 pair by pair, as it was written first: each frame's attachment compared
+    /// by `(nearness, rank)` with ranks `(density, −index)`.
+    fn attach_up_pair_by_pair(
+        n: usize,
+        pair_bin: &[u8],
+        density: &[u32],
+        attaches_at: &[bool; 256],
+    ) -> Vec<u32> {
+        let rank = |i: usize| (density[i], u32::MAX - i as u32);
+        let mut attach = vec![NONE; n];
+        let mut near = vec![0u32; n];
+        for_each_pair(n, pair_bin, |i, j, code| {
+            if !attaches_at[usize::from(code)] {
+                return;
+            }
+            let (low, high) = if rank(i) < rank(j) { (i, j) } else { (j, i) };
+            let d_new = u32::from(code & !ACROSS);
+            let current = attach[low];
+            if current == NONE
+                || d_new < near[low]
+                || (d_new == near[low] && rank(high) > rank(current as usize))
+            {
+                attach[low] = high as u32;
+                near[low] = d_new;
+            }
+        });
+        attach
+    }
+
     #[test]
     fn pairs_are_visited_with_the_codes_pass_one_wrote_for_them() {
         let n = 7;
@@ -1046,8 +1127,7 @@ mod tests {
 
     proptest::proptest! {
         /// [`codes_below`] finds the bound exactly when a table is of that form; pass 2's
-        /// compare gives the table's link counts; and [`for_each_pair_below`] calls its
-        /// closure for every pair below the bound, in [`for_each_pair`]'s order.
+        /// compare gives the table's link counts.
         #[test]
         fn bounded_passes_equal_the_table_passes(
             n in 1usize..80,
@@ -1084,18 +1164,35 @@ mod tests {
                 }
             }
             proptest::prop_assert_eq!(plain, fast);
-            let (mut all, mut skipping) = (Vec::new(), Vec::new());
-            for_each_pair(n, &bins, |i, j, code| {
-                if code < bound {
-                    all.push((i, j, code));
-                }
-            });
-            for_each_pair_below(n, &bins, Some(bound), |i, j, code| {
-                if code < bound {
-                    skipping.push((i, j, code));
-                }
-            });
-            proptest::prop_assert_eq!(all, skipping);
+
+        }
+
+        /// [`attach_up`] chooses what pass 3 pair by pair chooses, with densities that tie
+        /// often, with and without a bound on the attaching codes.
+        #[test]
+        fn attach_up_equals_the_pair_by_pair_pass(
+            n in 1usize..70,
+            codes in proptest::collection::vec(
+                proptest::prop_oneof![0u8..12, 0u8..130, proptest::strategy::Just(NO_PAIR)],
+                1..2500,
+            ),
+            densities in proptest::collection::vec(0u32..6, 70),
+            bound in 0u8..14,
+            flip in proptest::option::of(0u8..14),
+        ) {
+            let mut attaches_at = [false; 256];
+            for (c, t) in attaches_at.iter_mut().enumerate() {
+                *t = c < usize::from(bound);
+            }
+            if let Some(f) = flip {
+                attaches_at[usize::from(f)] ^= true;
+            }
+            let len = GroupScratchLen::for_frames(n).pair_bin;
+            let bins: Vec<u8> = (0..len).map(|k| codes[k % codes.len()]).collect();
+            let density = &densities[..n];
+            let (mut attach, mut near) = (vec![7u32; n], vec![3u32; n]);
+            attach_up(n, &bins, &mut density.to_vec(), &attaches_at, &mut attach, &mut near);
+            proptest::prop_assert_eq!(attach, attach_up_pair_by_pair(n, &bins, density, &attaches_at));
         }
     }
 

@@ -306,6 +306,19 @@ pub(crate) mod tests {
         test_workspace::WorkspaceBuf,
     };
 
+    /// `r`'s depth and flow with the mask `labels_t` (`r`'s size).
+    fn input_over<'a>(r: &'a Rendered, labels_t: &'a [u16]) -> MotionInput<'a> {
+        let (w, h) = (r.width, r.height);
+        MotionInput::new(
+            ImageView::packed(w, h, labels_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t).unwrap(),
+            ImageView::packed(w, h, &r.depth_t1).unwrap(),
+            ImageView::packed(w, h, &r.flow).unwrap(),
+            r.intrinsics,
+        )
+        .unwrap()
+    }
+
     /// Runs one step from the accumulated mask `labels_t` and the static mask `static_t1`
     /// over `r`'s depth and flow; returns the corrected mask.
     fn step_with(
@@ -316,14 +329,7 @@ pub(crate) mod tests {
         on_stage: impl FnMut(Stage),
     ) -> (Vec<u16>, StepReport) {
         let (w, h) = (r.width, r.height);
-        let input = MotionInput::new(
-            ImageView::packed(w, h, labels_t).unwrap(),
-            ImageView::packed(w, h, &r.depth_t).unwrap(),
-            ImageView::packed(w, h, &r.depth_t1).unwrap(),
-            ImageView::packed(w, h, &r.flow).unwrap(),
-            r.intrinsics,
-        )
-        .unwrap();
+        let input = input_over(r, labels_t);
         let mut ws = WorkspaceBuf::new(cfg, w, h);
         let mut out = vec![0u16; w * h];
         let static_t1 = ImageView::packed(w, h, static_t1).unwrap();
@@ -475,14 +481,7 @@ pub(crate) mod tests {
         let r = render(&row(&[slide_y(0.01), Pose::identity()]), 160, 120);
         let (w, h) = (r.width, r.height);
         let cfg = Config::PAPER;
-        let input = MotionInput::new(
-            ImageView::packed(w, h, &r.labels_t).unwrap(),
-            ImageView::packed(w, h, &r.depth_t).unwrap(),
-            ImageView::packed(w, h, &r.depth_t1).unwrap(),
-            ImageView::packed(w, h, &r.flow).unwrap(),
-            r.intrinsics,
-        )
-        .unwrap();
+        let input = input_over(&r, &r.labels_t);
         let mut ws = WorkspaceBuf::new(&cfg, w, h);
         let mut view = ws.view();
         let mut out = vec![0u16; w * h];
@@ -507,14 +506,7 @@ pub(crate) mod tests {
         let (w, h) = (r.width, r.height);
         let cfg = Config::PAPER;
         let merged: Vec<u16> = r.labels_t.iter().map(|&l| u16::from(l != 0)).collect();
-        let input = MotionInput::new(
-            ImageView::packed(w, h, &merged).unwrap(),
-            ImageView::packed(w, h, &r.depth_t).unwrap(),
-            ImageView::packed(w, h, &r.depth_t1).unwrap(),
-            ImageView::packed(w, h, &r.flow).unwrap(),
-            r.intrinsics,
-        )
-        .unwrap();
+        let input = input_over(&r, &merged);
         let mut ws = WorkspaceBuf::new(&cfg, w, h);
         let mut view = ws.view();
         let set = create_frames(&input, &cfg, view.samples, view.frames).unwrap();
@@ -811,14 +803,7 @@ pub(crate) mod tests {
         let mut buf = WorkspaceBuf::new(&cfg, 64, 48);
         let mut ws = buf.view();
         ws.mask.queue = &mut core::mem::take(&mut ws.mask.queue)[..10];
-        let input = MotionInput::new(
-            ImageView::packed(64, 48, &r.labels_t).unwrap(),
-            ImageView::packed(64, 48, &r.depth_t).unwrap(),
-            ImageView::packed(64, 48, &r.depth_t1).unwrap(),
-            ImageView::packed(64, 48, &r.flow).unwrap(),
-            r.intrinsics,
-        )
-        .unwrap();
+        let input = input_over(&r, &r.labels_t);
         let mut out = vec![7u16; 64 * 48];
         let static_t1 = ImageView::packed(64, 48, &r.labels_t1).unwrap();
         let err = update_mask(&input, &static_t1, &cfg, &mut ws, &mut out);

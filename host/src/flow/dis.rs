@@ -333,12 +333,7 @@ impl DisFlow {
         second: &Image<f32>,
         hint_px: Option<[f32; 2]>,
     ) -> Result<FlowImage, FlowError> {
-        check_pair(
-            first.width(),
-            first.height(),
-            second.width(),
-            second.height(),
-        )?;
+        check_pair(first.size(), second.size())?;
         self.estimate_from(
             Base::Gray([first.as_slice(), second.as_slice()]),
             first.size(),
@@ -638,12 +633,7 @@ impl FlowEstimator for DisFlow {
         first: ImageView<'_, [u8; 3]>,
         second: ImageView<'_, [u8; 3]>,
     ) -> Result<FlowImage, FlowError> {
-        check_pair(
-            first.width(),
-            first.height(),
-            second.width(),
-            second.height(),
-        )?;
+        check_pair(first.size(), second.size())?;
         self.estimate_from(Base::Rgb([first, second]), first.size(), None)
     }
 
@@ -658,12 +648,7 @@ impl FlowEstimator for DisFlow {
         second: ImageView<'_, [u8; 3]>,
         hint_px: [f32; 2],
     ) -> Result<FlowImage, FlowError> {
-        check_pair(
-            first.width(),
-            first.height(),
-            second.width(),
-            second.height(),
-        )?;
+        check_pair(first.size(), second.size())?;
         self.estimate_from(Base::Rgb([first, second]), first.size(), Some(hint_px))
     }
 }

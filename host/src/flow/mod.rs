@@ -227,8 +227,11 @@ pub trait FlowEstimator {
     }
 }
 
-/// Checks that two images have one non-empty size.
-pub(crate) fn check_pair(w0: usize, h0: usize, w1: usize, h1: usize) -> Result<(), FlowError> {
+/// Checks that two images have one non-empty size (each `(width, height)`).
+pub(crate) fn check_pair(
+    (w0, h0): (usize, usize),
+    (w1, h1): (usize, usize),
+) -> Result<(), FlowError> {
     if (w0, h0) != (w1, h1) {
         return Err(FlowError::SizeMismatch {
             first_width: w0,

@@ -129,8 +129,7 @@ impl FlowEstimator for OnnxFlow {
         first: ImageView<'_, [u8; 3]>,
         second: ImageView<'_, [u8; 3]>,
     ) -> Result<FlowImage, FlowError> {
-        let ((w0, h0), (w1, h1)) = (first.size(), second.size());
-        check_pair(w0, h0, w1, h1)?;
+        check_pair(first.size(), second.size())?;
         Ok(self.infer(first, second)?)
     }
 }

@@ -28,7 +28,7 @@ use riseg_core::Pose;
 
 #[path = "support/sim_episode.rs"]
 mod sim_episode;
-use sim_episode::run_sim_episode;
+use sim_episode::{FrameTruth, frame_truth, run_sim_episode};
 
 /// One captured frame, as far as the diagnosis needs it.
 struct Frame {
@@ -123,12 +123,11 @@ fn scene(seed: u64, layout: Layout) -> anyhow::Result<()> {
     let (mut width, mut height) = (0, 0);
     run_sim_episode(seed, layout, |f| {
         (width, height) = f.frame.size();
-        let truth = f.frame.truth.as_ref().ok_or("truth")?.as_slice().to_vec();
-        let pose_list = f.frame.truth_poses.clone().ok_or("poses")?;
-        let poses = pose_list
-            .iter()
-            .map(|p| (p.label, p.world_from_object))
-            .collect();
+        let FrameTruth {
+            truth,
+            pose_list,
+            poses,
+        } = frame_truth(f)?;
         let mut groups: BTreeMap<u16, BTreeMap<(Option<u16>, bool), usize>> = BTreeMap::new();
         if let (Some(step), Some(prev)) = (&f.observation.step, frames.last()) {
             for g in &step.frames {

@@ -19,7 +19,7 @@ use riseg_core::Pose;
 
 #[path = "support/sim_episode.rs"]
 mod sim_episode;
-use sim_episode::run_sim_episode;
+use sim_episode::{FrameTruth, frame_truth, run_sim_episode};
 
 struct Frame {
     truth: Vec<u16>,
@@ -164,12 +164,11 @@ fn scene(seed: u64, layout: Layout, dump: Option<&str>) -> anyhow::Result<()> {
     run_sim_episode(seed, layout, |f| {
         (width, height) = f.frame.size();
         let (w, h) = (width, height);
-        let truth = f.frame.truth.as_ref().ok_or("truth")?.as_slice().to_vec();
-        let pose_list = f.frame.truth_poses.clone().ok_or("poses")?;
-        let poses = pose_list
-            .iter()
-            .map(|p| (p.label, p.world_from_object))
-            .collect();
+        let FrameTruth {
+            truth,
+            pose_list,
+            poses,
+        } = frame_truth(f)?;
         let clusters = f
             .action
             .certain()

@@ -99,8 +99,12 @@
 //!    two) and some uncertain centre exists (the nearest one, farther than `d_b`, is its
 //!    uncertain centre): k-means puts the uncertain centres where most uncertain pixels
 //!    are, in the wide band that an earlier push opened between two columns of a pack,
-//!    and then finds none beside the faint cuts between the boxes of one column. A seam
-//!    pair is pushed only when its push splits a segment (step 8).
+//!    and then finds none beside the faint cuts between the boxes of one column. Two
+//!    pieces of one certain region that step 4 split by its metric size qualify as a
+//!    seam pair without crossing an uncertain pixel: a pack whose seams the heatmap does
+//!    not show at all is one certain region, and its size is the only evidence that it
+//!    holds several objects. A seam pair is pushed only when its push splits a segment
+//!    (step 8).
 //!
 //!    Qualifying pairs are ranked by the distance of their uncertain centre (so every
 //!    seam pair after the others), then by the distance between their centres, then by

@@ -182,8 +182,15 @@ pub(super) fn rank_pairs(
             if !relative_neighbours(certain, i, j) {
                 continue;
             }
+            // Two pieces of one certain region split by its metric size (step 4) need no
+            // cut between them: the size is the evidence that the region holds two objects.
+            let pieces = map
+                .region_of
+                .get(i)
+                .zip(map.region_of.get(j))
+                .is_some_and(|(a, b)| a == b && *a != NONE);
             match line_on_objects(map, i, j, pair_dist_m) {
-                Some(crossed) if crossed || !seam => {}
+                Some(crossed) if crossed || !seam || pieces => {}
                 _ => continue,
             }
             let (pushed, other) = if cj.samples < ci.samples {

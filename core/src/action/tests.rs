@@ -1244,3 +1244,32 @@ fn the_segment_twice_the_area_of_another_is_pushed_though_it_has_one_cluster() {
     };
     assert!(targets(&paper).iter().all(|&x| x > cut));
 }
+
+#[test]
+fn a_pack_the_heatmap_shows_no_seam_in_is_pushed_between_its_size_split_pieces() {
+    // Two 5 × 5 cm boxes (25 px) flush in a row, one certain region with no cut (9 cm
+    // long: split into two pieces by its size), one segment in the mask; the only
+    // uncertain centre lies 8 cm below the row, far from the line between the pieces.
+    let (x0, y0, side) = (80usize, 100usize, 25usize);
+    let x1 = x0 + 2 * side;
+    let mut s = Scene::new();
+    s.rect(x0, y0, x1, y0 + side, 100)
+        .rect(x0 + 2, y0 + 2, x1 - 2, y0 + side - 2, 255);
+    let mut mask = vec![0u16; W * H];
+    for y in y0..y0 + side {
+        mask[y * W + x0..y * W + x1].fill(1);
+    }
+    let uncertain = [uncertain_at((x0 + side) as Real, (y0 + side + 40) as Real)];
+    for seed in 0..8 {
+        let cfg = Config {
+            seed,
+            ..Config::PAPER
+        };
+        let (certain, push) = chosen(&s, &mask, &cfg, &uncertain);
+        assert_eq!(certain.len(), 2, "seed {seed}: two pieces");
+        let (pair, push) = push.expect("a push between the pieces");
+        assert!(is_seam(&pair, &cfg), "seed {seed}: {pair:?}");
+        // Across the row: a push along it would carry the other piece and split nothing.
+        assert!(push.direction_cam.y.abs() > 0.99, "seed {seed}: {push:?}");
+    }
+}

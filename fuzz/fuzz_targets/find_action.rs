@@ -43,7 +43,7 @@ fn run(u: &mut Unstructured<'_>) -> Result<()> {
     if let Some(pair) = report.pair() {
         assert!(pair.pushed < report.certain().len() && pair.other < report.certain().len());
         assert!(pair.pushed != pair.other);
-        assert!(pair.uncertain < report.uncertain().len());
+        assert!(pair.uncertain.is_none_or(|u| u < report.uncertain().len()));
         assert!(pair.pair_dist_m <= cfg.pair_max_m, "{pair:?}");
         // Beyond d_b only a seam pair, which is reported only with its push (a split).
         assert!(

@@ -101,9 +101,9 @@
 //!    are, in the wide band that an earlier push opened between two columns of a pack,
 //!    and then finds none beside the faint cuts between the boxes of one column. Two
 //!    pieces of one certain region that step 4 split by its metric size qualify as a
-//!    seam pair without crossing an uncertain pixel: a pack whose seams the heatmap does
-//!    not show at all is one certain region, and its size is the only evidence that it
-//!    holds several objects. A seam pair is pushed only when its push splits a segment
+//!    seam pair without crossing an uncertain pixel, and without any uncertain centre
+//!    (then the pair has none): a pack whose seams the heatmap does not show at all is one
+//!    certain region, and its size is the only evidence that it holds several objects. A seam pair is pushed only when its push splits a segment
 //!    (step 8).
 //!
 //!    Qualifying pairs are ranked by the distance of their uncertain centre (so every
@@ -317,12 +317,14 @@ pub struct Pair {
     /// Index into [`ActionReport::certain`] of the other cluster (`C_j*`).
     pub other: usize,
     /// Index into [`ActionReport::uncertain`] of the uncertain centre nearest the pair's
-    /// segment.
-    pub uncertain: usize,
+    /// segment; `None` for two pieces of one certain region when there is no uncertain
+    /// centre at all (module docs, step 7).
+    pub uncertain: Option<usize>,
     /// 3-D distance between the two certain centres, metres.
     pub pair_dist_m: Real,
     /// 3-D distance from the uncertain centre to the pair's segment, metres; above
-    /// [`Config::uncertain_max_m`] for a seam pair (module docs, step 7).
+    /// [`Config::uncertain_max_m`] for a seam pair, infinite without an uncertain centre
+    /// (module docs, step 7).
     pub uncertain_dist_m: Real,
 }
 

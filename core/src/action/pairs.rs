@@ -171,8 +171,18 @@ pub(super) fn rank_pairs(
                     nearest = Some((d, n));
                 }
             }
-            let Some((uncertain_dist_m, n)) = nearest else {
-                continue;
+            // Two pieces of one certain region split by its metric size (step 4) need no
+            // cut between them, nor any uncertain centre: the size is the evidence that
+            // the region holds two objects.
+            let pieces = map
+                .region_of
+                .get(i)
+                .zip(map.region_of.get(j))
+                .is_some_and(|(a, b)| a == b && *a != NONE);
+            let (uncertain_dist_m, n) = match nearest {
+                Some((d, n)) => (d, Some(n)),
+                None if pieces => (Real::INFINITY, None),
+                None => continue,
             };
             // Beyond d_b only a seam pair, with the push choice of step 8 on.
             let seam = uncertain_dist_m > cfg.uncertain_max_m;
@@ -182,13 +192,6 @@ pub(super) fn rank_pairs(
             if !relative_neighbours(certain, i, j) {
                 continue;
             }
-            // Two pieces of one certain region split by its metric size (step 4) need no
-            // cut between them: the size is the evidence that the region holds two objects.
-            let pieces = map
-                .region_of
-                .get(i)
-                .zip(map.region_of.get(j))
-                .is_some_and(|(a, b)| a == b && *a != NONE);
             match line_on_objects(map, i, j, pair_dist_m) {
                 Some(crossed) if crossed || !seam || pieces => {}
                 _ => continue,

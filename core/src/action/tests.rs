@@ -1249,7 +1249,8 @@ fn the_segment_twice_the_area_of_another_is_pushed_though_it_has_one_cluster() {
 fn a_pack_the_heatmap_shows_no_seam_in_is_pushed_between_its_size_split_pieces() {
     // Two 5 × 5 cm boxes (25 px) flush in a row, one certain region with no cut (9 cm
     // long: split into two pieces by its size), one segment in the mask; the only
-    // uncertain centre lies 8 cm below the row, far from the line between the pieces.
+    // uncertain centre lies 8 cm below the row, far from the line between the pieces,
+    // or there is none.
     let (x0, y0, side) = (80usize, 100usize, 25usize);
     let x1 = x0 + 2 * side;
     let mut s = Scene::new();
@@ -1259,17 +1260,28 @@ fn a_pack_the_heatmap_shows_no_seam_in_is_pushed_between_its_size_split_pieces()
     for y in y0..y0 + side {
         mask[y * W + x0..y * W + x1].fill(1);
     }
-    let uncertain = [uncertain_at((x0 + side) as Real, (y0 + side + 40) as Real)];
-    for seed in 0..8 {
-        let cfg = Config {
-            seed,
-            ..Config::PAPER
-        };
-        let (certain, push) = chosen(&s, &mask, &cfg, &uncertain);
-        assert_eq!(certain.len(), 2, "seed {seed}: two pieces");
-        let (pair, push) = push.expect("a push between the pieces");
-        assert!(is_seam(&pair, &cfg), "seed {seed}: {pair:?}");
-        // Across the row: a push along it would carry the other piece and split nothing.
-        assert!(push.direction_cam.y.abs() > 0.99, "seed {seed}: {push:?}");
+    let below = [uncertain_at((x0 + side) as Real, (y0 + side + 40) as Real)];
+    for (uncertain, centre) in [(&below[..], Some(0)), (&[][..], None)] {
+        for seed in 0..8 {
+            let cfg = Config {
+                seed,
+                ..Config::PAPER
+            };
+            let (certain, push) = chosen(&s, &mask, &cfg, uncertain);
+            assert_eq!(certain.len(), 2, "seed {seed}: two pieces");
+            let (pair, push) = push.expect("a push between the pieces");
+            assert!(is_seam(&pair, &cfg), "seed {seed}: {pair:?}");
+            assert_eq!(pair.uncertain, centre, "seed {seed}");
+            // Across the row: a push along it would carry the other piece and split nothing.
+            assert!(push.direction_cam.y.abs() > 0.99, "seed {seed}: {push:?}");
+        }
     }
+    // Two regions that no size split made stay without a pair when no uncertain centre
+    // exists.
+    let mut apart = Scene::new();
+    apart
+        .disc(140.0, 120.0, R_PX, 255)
+        .disc(172.0, 120.0, R_PX, 255);
+    let (_, pairs) = ranked(&apart, &Config::PAPER, &[]);
+    assert!(pairs.is_empty(), "{pairs:?}");
 }

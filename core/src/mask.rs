@@ -1336,8 +1336,17 @@ fn absorb_fragments(
 ) {
     let carried_of = |k: u32| (k >> 16) as usize;
     let static_of = |k: u32| (k & 0xFFFF) as usize;
-    segs.target.fill(0);
-    for s in dominant.iter_mut().take(MAX_SEGMENTS + 1) {
+    // Only the labels the segments' keys hold are read: clear up to the largest of each
+    // (not all 65 536 entries of both tables every step).
+    let (mut carried_max, mut static_max) = (0, 0);
+    for &k in segs.key.iter().skip(1).take(count) {
+        carried_max = carried_max.max(carried_of(k));
+        static_max = static_max.max(static_of(k));
+    }
+    for t in segs.target.iter_mut().take(carried_max + 1) {
+        *t = 0;
+    }
+    for s in dominant.iter_mut().take(static_max + 1) {
         *s = NONE;
     }
     for i in 1..=count {

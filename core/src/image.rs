@@ -210,7 +210,9 @@ pub const MAX_DEPTH_M: f32 = 100.0;
 #[must_use]
 #[inline]
 pub fn valid_depth(z: f32) -> Option<f32> {
-    if z.is_finite() && z > 0.0 && z <= MAX_DEPTH_M {
+    // The two comparisons reject NaN (both fail) and infinities (one fails): no separate
+    // finiteness test (a test checks).
+    if z > 0.0 && z <= MAX_DEPTH_M {
         Some(z)
     } else {
         None
@@ -220,6 +222,47 @@ pub fn valid_depth(z: f32) -> Option<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The rule as the docs state it.
+    fn valid_depth_reference(z: f32) -> Option<f32> {
+        (z.is_finite() && z > 0.0 && z <= MAX_DEPTH_M).then_some(z)
+    }
+
+    #[test]
+    fn valid_depth_is_finite_positive_and_at_most_the_limit() {
+        for z in [
+            f32::NAN,
+            -f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            0.0,
+            -0.0,
+            f32::MIN_POSITIVE,
+            f32::from_bits(1),
+            0.6,
+            -0.6,
+            MAX_DEPTH_M,
+            f32::from_bits(MAX_DEPTH_M.to_bits() + 1),
+            f32::MAX,
+        ] {
+            assert_eq!(
+                valid_depth(z).map(f32::to_bits),
+                valid_depth_reference(z).map(f32::to_bits),
+                "{z}"
+            );
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn valid_depth_matches_the_stated_rule_on_any_bits(bits in proptest::prelude::any::<u32>()) {
+            let z = f32::from_bits(bits);
+            proptest::prop_assert_eq!(
+                valid_depth(z).map(f32::to_bits),
+                valid_depth_reference(z).map(f32::to_bits)
+            );
+        }
+    }
 
     #[test]
     fn layout_is_checked_and_accessors_never_panic() {

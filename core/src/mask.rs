@@ -86,8 +86,8 @@ pub struct FrameGroups<'a> {
 /// Scratch for [`correct_mask`]. Contents are garbage after the call.
 #[derive(Debug)]
 pub struct MaskScratch<'a> {
-    /// Per-pixel keys: splat depth bits, then segment keys, then growth decisions;
-    /// `width·height`.
+    /// Per-pixel keys: splat depth bits, then segment keys, then growth states (each
+    /// pixel's decision, then the group that claimed it), then labels; `width·height`.
     pub key: &'a mut [u32],
     /// Source pixel at `t` of each pixel at `t+1`; `width·height`.
     pub source: &'a mut [u32],
@@ -95,8 +95,6 @@ pub struct MaskScratch<'a> {
     pub segment: &'a mut [u32],
     /// Breadth-first queue; `width·height`.
     pub queue: &'a mut [u32],
-    /// Group that claimed each pixel while growing (`0`: none); `width·height`.
-    pub claim: &'a mut [u16],
     /// Per-segment sizes, merge targets and keys; [`MAX_SEGMENTS`]` + 1` each.
     pub segment_size: &'a mut [u32],
     /// See [`MaskScratch::segment_size`].
@@ -151,10 +149,10 @@ impl MaskScratchLen {
     /// Bytes the scratch takes.
     #[must_use]
     pub const fn bytes(&self) -> usize {
-        // key, source, segment, queue (u32) and claim (u16) per pixel; size, target and
-        // key (u32) per segment.
+        // key, source, segment and queue (u32) per pixel; size, target and key (u32) per
+        // segment.
         self.pixels
-            .saturating_mul(4 * size_of::<u32>() + size_of::<u16>())
+            .saturating_mul(4 * size_of::<u32>())
             .saturating_add(self.segments.saturating_mul(3 * size_of::<u32>()))
             .saturating_add(self.seeds.saturating_mul(size_of::<SegmentSeeds>()))
             .saturating_add(self.motions.saturating_mul(size_of::<Pose>()))
@@ -223,7 +221,6 @@ fn correct_mask_in(
         scratch.key.len(),
         scratch.source.len(),
         scratch.segment.len(),
-        scratch.claim.len(),
     ] {
         check_len(Buffer::Pixels, n, len)?;
     }
@@ -245,7 +242,6 @@ fn correct_mask_in(
     let source = &mut scratch.source[..m];
     let segment = &mut scratch.segment[..m];
     let queue = &mut scratch.queue[..n];
-    let claim = &mut scratch.claim[..m];
     let mut segs = Segments {
         size: &mut *scratch.segment_size,
         target: &mut *scratch.segment_target,
@@ -289,7 +285,7 @@ fn correct_mask_in(
             motions,
             source,
         },
-        (key, claim, queue),
+        (key, queue),
     );
 
     // 5. Label.
@@ -299,19 +295,20 @@ fn correct_mask_in(
     let row_len = grid.width.max(1);
     // Runs of pixels repeat one (segment, claim): look its label up once per run.
     let mut run = (0u32, 0u16, 0u16);
-    for (y, ((out_row, seg_row), (claim_row, key_row))) in window_labels
+    for (y, ((out_row, seg_row), key_row)) in window_labels
         .chunks_mut(row_len)
         .zip(segment.chunks(row_len))
-        .zip(claim.chunks(row_len).zip(key.chunks_mut(row_len)))
+        .zip(key.chunks_mut(row_len))
         .enumerate()
     {
         let static_row = grid.static_row(static_t1, y);
-        for (x, ((out, &seg), (&c, k))) in out_row
+        for (x, ((out, &seg), k)) in out_row
             .iter_mut()
             .zip(seg_row)
-            .zip(claim_row.iter().zip(key_row.iter_mut()))
+            .zip(key_row.iter_mut())
             .enumerate()
         {
+            let c = Growth::claim(*k);
             if (seg, c) != (run.0, run.1) {
                 let mut label = seg as u16;
                 if c != 0 {
@@ -528,33 +525,35 @@ struct Regions<'r> {
 /// Step 4 (module docs): in every segment where two or more groups count, regions grow
 /// breadth-first from the groups' seed pixels to 4-neighbours that the group's motion
 /// explains best (within [`Config::grow_tol_px`]); pixels without an observation pass
-/// for any region. Writes `group + 1` of the region that claimed each pixel to `claim`
-/// (`0`: none). `key` and `queue` are scratch of one entry per pixel.
+/// for any region. Leaves in `key` each pixel's [`Growth`] state, from which
+/// [`Growth::claim`] reads `group + 1` of the region that claimed it (`0`: none).
+/// `queue` is scratch of one entry per pixel.
 fn grow_regions(
     grid: Grid,
     input: &MotionInput<'_>,
     cfg: &Config,
     groups: &FrameGroups<'_>,
     regions: Regions<'_>,
-    (key, claim, queue): (&mut [u32], &mut [u16], &mut [u32]),
+    (key, queue): (&mut [u32], &mut [u32]),
 ) {
-    let Regions {
-        segment,
-        seeds,
-        motions,
-        source,
-    } = regions;
-    claim.fill(0);
-    let mut head = 0;
+    let Regions { segment, seeds, .. } = regions;
+    // A split segment has seeds of two or more groups, so some pixel seeds.
+    let split = seeds
+        .windows(2)
+        .any(|w| matches!(w, [a, b] if a.segment == b.segment));
+    if !split {
+        // Nothing grows.
+        key.fill(Growth::CLOSED);
+        return;
+    }
+    // Each pixel's best explaining group, computed for every pixel of a split segment
+    // before growing, eight pixels at a time (see [`Growth`]). Growth reaches nearly all
+    // of them (90 % of the split segments' pixels over `riseg bench` packed and loose,
+    // seed 1), so deciding them in a batch costs less than deciding each on first reach.
+    decide_pixels(input, cfg, regions, key);
     let mut tail = 0;
-    for f in 0..groups.frames.len() {
-        let (Some(frame), Some(g)) = (
-            groups.frames.get(f),
-            groups
-                .frame_group
-                .get(f)
-                .and_then(|&g| seed_group(groups, g)),
-        ) else {
+    for (frame, &g) in groups.frames.iter().zip(groups.frame_group) {
+        let Some(g) = seed_group(groups, g) else {
             continue;
         };
         for px in frame.px_t1 {
@@ -566,54 +565,90 @@ fn grow_regions(
             if seg == 0 || run.len() < 2 || !run.iter().any(|s| s.group == u32::from(g)) {
                 continue;
             }
-            if let (Some(c @ 0), Some(q)) = (claim.get_mut(i), queue.get_mut(tail)) {
-                *c = g + 1;
+            if let (Some(k), Some(q)) = (key.get_mut(i), queue.get_mut(tail))
+                && Growth::seed(k, g + 1)
+            {
                 *q = packed;
                 tail += 1;
             }
         }
     }
-    if tail == 0 {
-        // No split segment: nothing grows.
-        return;
+    grow_from_seeds(grid, segment, key, queue, tail);
+}
+
+/// A pixel's state while step 4 grows, in `key` (one compare tells a neighbour whether a
+/// region may take it):
+/// - `seg << 16 | (group + 1)`: unclaimed, in split segment `seg`, explained best by
+///   `group` (only its region may take it);
+/// - `seg << 16`: unclaimed, in split segment `seg`, without an observation (any region
+///   of the segment may take it);
+/// - [`Growth::CLOSED`]: unclaimed and no region may take it (no group explains it, or
+///   it lies outside the split segments);
+/// - `group + 1` (`1..=0xFFFF`): claimed by `group`'s region.
+///
+/// Segment ids are non-zero, so open states are at least `1 << 16` and never a claim.
+struct Growth;
+
+impl Growth {
+    const CLOSED: u32 = 0;
+
+    /// The open state of a pixel of split segment `seg` with decision `decision`
+    /// (`group + 1`, `0` for none, [`HOLE`] for no observation).
+    const fn open(seg: u32, decision: u32) -> u32 {
+        match decision {
+            0 => Self::CLOSED,
+            HOLE => seg << 16,
+            g => (seg << 16) | g,
+        }
     }
-    // Each pixel's best explaining group, computed for every pixel of a split segment
-    // before growing, eight pixels at a time: key holds HOLE (no observation: any region
-    // may pass) or group + 1 (0: no group within tolerance). Growth reaches nearly all of
-    // them (90 % of the split segments' pixels over `riseg bench` packed and loose, seed
-    // 1), so deciding them in a batch costs less than deciding each on first reach.
-    decide_pixels(
-        input,
-        cfg,
-        Regions {
-            segment,
-            seeds,
-            motions,
-            source,
-        },
-        key,
-    );
-    let width = grid.width;
+
+    /// `group + 1` of the region that claimed a pixel in state `state`, `0` if none.
+    const fn claim(state: u32) -> u16 {
+        if state < 1 << 16 { state as u16 } else { 0 }
+    }
+
+    /// A seed of the region with claim `claim` (`group + 1`) takes an unclaimed pixel
+    /// whatever its decision; `false` if the pixel is claimed already.
+    const fn seed(state: &mut u32, claim: u16) -> bool {
+        let free = Self::claim(*state) == 0;
+        if free {
+            *state = claim as u32;
+        }
+        free
+    }
+}
+
+/// Step 4's breadth-first growth from the `tail` claimed seed pixels at the front of
+/// `queue` (packed window pixels), over [`Growth`] states in `key`: each region takes
+/// the 4-neighbours of its pixels whose state it may take, in queue order. Branch-free per
+/// neighbour: the queue slot is written whether or not the neighbour is taken.
+fn grow_from_seeds(
+    grid: Grid,
+    segment: &[u32],
+    key: &mut [u32],
+    queue: &mut [u32],
+    mut tail: usize,
+) {
+    let (width, height) = (grid.width, grid.height);
+    let mut head = 0;
     while head < tail {
         let Some(&p) = queue.get(head) else { break };
         head += 1;
         let (x, y) = Grid::unpack(p);
         let i = y * width + x;
-        let (Some(&seg), Some(&mine)) = (segment.get(i), claim.get(i)) else {
+        let (Some(&seg), Some(&mine)) = (segment.get(i), key.get(i)) else {
             continue;
         };
+        let (hole, explained) = (seg << 16, (seg << 16) | mine);
         let mut visit = |j: usize, pj: u32| {
-            if segment.get(j) != Some(&seg) || claim.get(j) != Some(&0) {
-                return;
-            }
-            let Some(&decision) = key.get(j) else { return };
-            if (decision == HOLE || decision == u32::from(mine))
-                && let (Some(c), Some(q)) = (claim.get_mut(j), queue.get_mut(tail))
-            {
-                *c = mine;
+            let Some(k) = key.get_mut(j) else { return };
+            let take = (*k == hole) | (*k == explained);
+            // `tail` < `queue.len()` while a pixel is left to take (each is taken once).
+            if let Some(q) = queue.get_mut(tail) {
                 *q = pj;
-                tail += 1;
             }
+            *k = if take { mine } else { *k };
+            tail += usize::from(take);
         };
         // Left, right, up, down: the order the queue grows in.
         if x > 0 {
@@ -625,7 +660,7 @@ fn grow_regions(
         if y > 0 {
             visit(i - width, p - (1 << 16));
         }
-        if y + 1 < grid.height {
+        if y + 1 < height {
             visit(i + width, p + (1 << 16));
         }
     }
@@ -730,8 +765,9 @@ impl PixelBatch {
     }
 }
 
-/// Step 4's decisions: writes to `key` the decision of every pixel of a segment with two
-/// or more seed entries (see [`grow_regions`]); other pixels' keys are left as they are.
+/// Step 4's decisions: writes to `key` the open [`Growth`] state of every pixel of a
+/// segment with two or more seed entries (see [`grow_regions`]), and
+/// [`Growth::CLOSED`] for every other pixel.
 fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, key: &mut [u32]) {
     let Regions {
         segment,
@@ -750,19 +786,20 @@ fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, ke
             return;
         }
         let decisions = batch.decide(candidates, motions, &k, tol2);
+        let seg = candidates.first().map_or(0, |c| c.segment);
         for (&j, &d) in batch.index.iter().zip(&decisions).take(batch.len) {
             if let Some(slot) = key.get_mut(j) {
-                *slot = d;
+                *slot = Growth::open(seg, d);
             }
         }
         batch.len = 0;
     };
     for (j, (&seg, &s)) in segment.iter().zip(source).enumerate() {
-        if seg == 0 {
-            continue;
-        }
-        let candidates = entries.of(seg);
+        let candidates = if seg == 0 { &[] } else { entries.of(seg) };
         if candidates.len() < 2 {
+            if let Some(slot) = key.get_mut(j) {
+                *slot = Growth::CLOSED;
+            }
             continue;
         }
         let observation = (s != NONE)
@@ -777,7 +814,7 @@ fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, ke
             .flatten();
         let Some((p, observed)) = observation else {
             if let Some(slot) = key.get_mut(j) {
-                *slot = HOLE;
+                *slot = Growth::open(seg, HOLE);
             }
             continue;
         };
@@ -1299,8 +1336,17 @@ fn absorb_fragments(
 ) {
     let carried_of = |k: u32| (k >> 16) as usize;
     let static_of = |k: u32| (k & 0xFFFF) as usize;
-    segs.target.fill(0);
-    for s in dominant.iter_mut().take(MAX_SEGMENTS + 1) {
+    // Only the labels the segments' keys hold are read: clear up to the largest of each
+    // (not all 65 536 entries of both tables every step).
+    let (mut carried_max, mut static_max) = (0, 0);
+    for &k in segs.key.iter().skip(1).take(count) {
+        carried_max = carried_max.max(carried_of(k));
+        static_max = static_max.max(static_of(k));
+    }
+    for t in segs.target.iter_mut().take(carried_max + 1) {
+        *t = 0;
+    }
+    for s in dominant.iter_mut().take(static_max + 1) {
         *s = NONE;
     }
     for i in 1..=count {
@@ -1410,16 +1456,20 @@ fn merge_same_motion(
 /// The group a frame of group `g` seeds: `None` for [`crate::group::NO_GROUP`]; every group that did
 /// not move seeds as the first such group (with the identity motion), so that frames that
 /// all stayed still never split a segment, whichever static groups they fell into.
+/// (A group id of [`NO_GROUP`](crate::group::NO_GROUP) never seeds, however many groups
+/// there are: `group + 1` must fit `u16`, see [`Growth`].)
 fn seed_group(groups: &FrameGroups<'_>, g: u16) -> Option<u16> {
     let info = groups.groups.get(usize::from(g))?;
-    if info.moving {
-        return Some(g);
-    }
-    groups
-        .groups
-        .iter()
-        .position(|i| !i.moving)
-        .and_then(|i| u16::try_from(i).ok())
+    let seeds = if info.moving {
+        Some(g)
+    } else {
+        groups
+            .groups
+            .iter()
+            .position(|i| !i.moving)
+            .and_then(|i| u16::try_from(i).ok())
+    };
+    seeds.filter(|&s| s != crate::group::NO_GROUP)
 }
 
 /// Writes sorted `(segment, group, seed count)` entries of the grouped frames' tracked
@@ -1736,7 +1786,7 @@ mod tests {
             },
         ];
         let source: [u32; 8] = core::array::from_fn(|x| Grid::pack(x, 0));
-        let (mut key, mut claim, mut queue) = ([0u32; 8], [0u16; 8], [0u32; 8]);
+        let (mut key, mut queue) = ([0u32; 8], [0u32; 8]);
         grow_regions(
             Grid::whole(w, h),
             &input,
@@ -1748,9 +1798,9 @@ mod tests {
                 motions: &motions,
                 source: &source,
             },
-            (&mut key, &mut claim, &mut queue),
+            (&mut key, &mut queue),
         );
-        assert_eq!(claim, [1, 1, 2, 2, 2, 2, 2, 2]);
+        assert_eq!(key.map(Growth::claim), [1, 1, 2, 2, 2, 2, 2, 2]);
     }
 
     #[test]
@@ -1904,6 +1954,89 @@ mod tests {
             proptest::prop_assert_eq!(&segment, &expected);
             proptest::prop_assert_eq!(&segs.size[1..=count], &sizes[1..]);
             proptest::prop_assert_eq!(&segs.key[1..=count], &keys[1..]);
+        }
+    }
+
+    /// Step 4's growth as first written: separate segment, claim and decision maps (the
+    /// decision `HOLE`, `0` or `group + 1`), seeds taken in order when unclaimed.
+    fn grow_reference(
+        (w, h): (usize, usize),
+        segment: &[u32],
+        decision: &[u32],
+        seeds: &[(usize, u16)],
+    ) -> Vec<u16> {
+        let mut claim = vec![0u16; w * h];
+        let mut queue = std::collections::VecDeque::new();
+        for &(i, c) in seeds {
+            if claim[i] == 0 {
+                claim[i] = c;
+                queue.push_back(i);
+            }
+        }
+        while let Some(i) = queue.pop_front() {
+            let (x, y) = (i % w, i / w);
+            let near = [
+                (x > 0).then(|| i - 1),
+                (x + 1 < w).then(|| i + 1),
+                (y > 0).then(|| i - w),
+                (y + 1 < h).then(|| i + w),
+            ];
+            for j in near.into_iter().flatten() {
+                if segment[j] == segment[i]
+                    && claim[j] == 0
+                    && (decision[j] == HOLE || decision[j] == u32::from(claim[i]))
+                {
+                    claim[j] = claim[i];
+                    queue.push_back(j);
+                }
+            }
+        }
+        claim
+    }
+
+    proptest::proptest! {
+        /// Growth over one state word per pixel ([`Growth`], [`grow_from_seeds`]) claims
+        /// exactly what growth over separate segment, claim and decision maps claims:
+        /// random segments (ids up to `0xFFFF`), decisions (holes, none, group ids up to
+        /// `0xFFFF`) and seeds, some on one pixel.
+        #[test]
+        fn growth_states_claim_as_separate_maps(seed in proptest::prelude::any::<u64>()) {
+            use crate::rng::Pcg32;
+            let mut rng = Pcg32::new(seed);
+            let (w, h) = (1 + rng.below(24) as usize, 1 + rng.below(16) as usize);
+            let ids = [0, 1, 2, 0xFFFF];
+            let claims = [1u16, 2, 3, 0xFFFF];
+            // Segments in 2x2 blocks, so that regions meet inside them.
+            let block: Vec<u32> = (0..w * h).map(|_| ids[rng.below(4) as usize]).collect();
+            let segment: Vec<u32> = (0..w * h).map(|i| block[(i % w) / 2 + (i / w) / 2 * w]).collect();
+            let decision: Vec<u32> = (0..w * h)
+                .map(|_| match rng.below(6) {
+                    0 => 0,
+                    1 | 2 => HOLE,
+                    _ => u32::from(claims[rng.below(4) as usize]),
+                })
+                .collect();
+            let seeds: Vec<(usize, u16)> = (0..rng.below(12))
+                .map(|_| (rng.below((w * h) as u32) as usize, claims[rng.below(4) as usize]))
+                .filter(|&(i, _)| segment[i] != 0)
+                .collect();
+            let truth = grow_reference((w, h), &segment, &decision, &seeds);
+            let mut key: Vec<u32> = segment
+                .iter()
+                .zip(&decision)
+                .map(|(&s, &d)| if s == 0 { Growth::CLOSED } else { Growth::open(s, d) })
+                .collect();
+            let mut queue = vec![0u32; w * h];
+            let mut tail = 0;
+            for &(i, c) in &seeds {
+                if Growth::seed(&mut key[i], c) {
+                    queue[tail] = Grid::pack(i % w, i / w);
+                    tail += 1;
+                }
+            }
+            grow_from_seeds(Grid::whole(w, h), &segment, &mut key, &mut queue, tail);
+            let claimed: Vec<u16> = key.iter().map(|&k| Growth::claim(k)).collect();
+            proptest::prop_assert_eq!(claimed, truth);
         }
     }
 

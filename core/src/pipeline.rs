@@ -71,7 +71,7 @@ impl Workspace<'_> {
         )?;
         let m = &self.mask;
         let px = len.mask.pixels;
-        for l in [m.key.len(), m.source.len(), m.segment.len(), m.claim.len()] {
+        for l in [m.key.len(), m.source.len(), m.segment.len()] {
             check_len(Buffer::Pixels, px, l)?;
         }
         check_len(Buffer::Queue, px, m.queue.len())?;

@@ -129,7 +129,6 @@ fn main() -> ! {
     static mut SOURCE: [u32; LEN.mask.pixels] = [0; LEN.mask.pixels];
     static mut SEGMENT: [u32; LEN.mask.pixels] = [0; LEN.mask.pixels];
     static mut QUEUE: [u32; LEN.mask.pixels] = [0; LEN.mask.pixels];
-    static mut CLAIM: [u16; LEN.mask.pixels] = [0; LEN.mask.pixels];
     static mut SEGMENT_SIZE: [u32; LEN.mask.segments] = [0; LEN.mask.segments];
     static mut SEGMENT_TARGET: [u32; LEN.mask.segments] = [0; LEN.mask.segments];
     static mut SEGMENT_KEY: [u32; LEN.mask.segments] = [0; LEN.mask.segments];
@@ -184,7 +183,6 @@ fn main() -> ! {
             source: SOURCE,
             segment: SEGMENT,
             queue: QUEUE,
-            claim: CLAIM,
             segment_size: SEGMENT_SIZE,
             segment_target: SEGMENT_TARGET,
             segment_key: SEGMENT_KEY,

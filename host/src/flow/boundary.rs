@@ -86,7 +86,12 @@ fn select_row(images: Pair<'_>, src: &[[f32; 2]], y: usize, reach_px: usize, out
         // flat loop over both components that vectorises (few pixels pass the test).
         let mut spread = [0.0f32; 2 * BLOCK];
         let (i, m) = (2 * start, 2 * n);
-        for (((s, &f), &a), &b) in spread[..m].iter_mut().zip(&flat[i..]).zip(&up[i..]).zip(&down[i..]) {
+        for (((s, &f), &a), &b) in spread[..m]
+            .iter_mut()
+            .zip(&flat[i..])
+            .zip(&up[i..])
+            .zip(&down[i..])
+        {
             *s = larger((f - a).abs(), (f - b).abs());
         }
         // Left and right: the flat loop where both lie inside the row, then the pixels

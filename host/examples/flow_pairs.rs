@@ -48,7 +48,8 @@ struct Args {
     /// preset with `coarse_anchor = 4`, `coarsest_propagation = false`, and `+noanchor`
     /// with `coarse_anchor = 0`, `coarsest_propagation = true`; `+edge` turns on the
     /// edge-aware refinement and robust densification (`smoothness_edge_grey = 12`,
-    /// `densify_outlier_per_grey = 0.5`, `smoothness = 30`).
+    /// `densify_outlier_per_grey = 0.5`, `smoothness = 30`); `+KEY=VALUE` (repeatable,
+    /// `medium+smoothness=30+sor_iters=5`) sets `FlowParams` fields by their `[flow]` names.
     #[arg(
         long,
         value_delimiter = ',',
@@ -159,6 +160,20 @@ fn load(dir: &Path, name: &str) -> Result<Pair> {
     })
 }
 
+/// `params` with the `FlowParams` fields of `assignments` (`key=value` joined by `+`,
+/// values in TOML: `smoothness_edge_grey=6+smoothness=30`) set.
+fn with_keys(params: FlowParams, assignments: &str) -> Result<FlowParams> {
+    let mut table = toml::Table::try_from(params)?;
+    for kv in assignments.split('+') {
+        let (key, value) = kv
+            .split_once('=')
+            .with_context(|| format!("{kv:?} is not KEY=VALUE"))?;
+        let value: toml::Table = toml::from_str(&format!("v = {value}"))?;
+        table.insert(key.to_owned(), value["v"].clone());
+    }
+    Ok(table.try_into()?)
+}
+
 fn main() -> Result<()> {
     let args = Args::parse();
     std::fs::create_dir_all(&args.dir)
@@ -199,8 +214,11 @@ fn main() -> Result<()> {
                 params.densify_outlier_per_grey = 0.5;
                 params.smoothness = 30.0;
             }
+            assignments if assignments.contains('=') => params = with_keys(params, assignments)?,
             other => {
-                anyhow::bail!("unknown variant {other:?} in {preset:?} (anchor, noanchor, edge)")
+                anyhow::bail!(
+                    "unknown variant {other:?} in {preset:?} (anchor, noanchor, edge, KEY=VALUE)"
+                )
             }
         }
         let est = DisFlow::new(params)?.with_threads(1)?;

@@ -26,6 +26,7 @@
 pub mod dis;
 pub mod viz;
 
+mod boundary;
 mod densify;
 mod pool;
 mod pyramid;

@@ -39,6 +39,22 @@ pub(crate) fn downsample(src: &[f32], w: usize, h: usize, pool: &Pool) -> Plane 
     Plane { w: w2, h: h2, data }
 }
 
+/// The luma of `rgb` ([`super::luma`]) in a buffer of `pool`, row-major.
+pub(crate) fn luma_plane(rgb: ImageView<'_, [u8; 3]>, pool: &Pool) -> Vec<f32> {
+    let w = rgb.width();
+    let mut data = pool.scratch(w * rgb.height());
+    if w > 0 {
+        data.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+            if let Some(row) = rgb.row(y) {
+                for (o, p) in out.iter_mut().zip(row) {
+                    *o = luma_of(p);
+                }
+            }
+        });
+    }
+    data
+}
+
 /// [`downsample`] of the luma of `rgb` ([`super::luma`]), converting each pixel as it
 /// is read: the same values, bit for bit, without the full-resolution luma image.
 pub(crate) fn downsample_luma(rgb: ImageView<'_, [u8; 3]>, pool: &Pool) -> Plane {

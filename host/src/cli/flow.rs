@@ -32,7 +32,8 @@ seconds of the call may leave the old file or none: run the command again).
 Presets, fastest first (bench/flow.sh measures them against OpenCV's DIS):
   ultrafast  stops at quarter resolution, no refinement: a few ms, coarse boundaries
   fast       stops at half resolution, two refinement iterations per level
-  medium     fast with denser patches (default)
+  medium     denser patches, one refinement iteration per level, and motion boundaries
+             sharpened at full resolution (default)
   fine       half resolution plus a full-resolution polish: sharpest motion boundaries,
              about twice the time of medium";
 

@@ -15,7 +15,10 @@ fn space_from_body(space_origin: &Point3<f32>, pts: &[Point3<f32>; 3]) -> riseg_
 
 proptest! {
     /// Every body frame on one rigid body has the same spatial twist, for any fixed space
-    /// frame origin (each origin consistent within itself), and it is log(M) in that frame.
+    /// frame origin (each origin consistent within itself), and it is log(M) in that frame,
+    /// to f32 precision relative to the twist's size: near a half turn the log amplifies
+    /// the rounding of a frame built from points 5 mm apart (CI found 1.01e-4 on a twist of
+    /// norm 3.4 at 2.84 rad).
     #[test]
     fn spatial_twist_is_body_frame_invariant(
         m in motion(),
@@ -28,7 +31,8 @@ proptest! {
             for pts in &frames {
                 let moved = pts.map(|p| m * p);
                 let twist = spatial_twist(&space_from_body(origin, pts), &space_from_body(origin, &moved));
-                prop_assert!(twist.distance(&expected, 1.0) < 1e-4, "{twist:?} vs {expected:?}");
+                let tol = 1e-4 * (1.0 + expected.norm_squared(1.0).sqrt());
+                prop_assert!(twist.distance(&expected, 1.0) < tol, "{twist:?} vs {expected:?}");
             }
         }
     }

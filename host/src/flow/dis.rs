@@ -444,6 +444,18 @@ impl DisFlow {
         // levels serve the finer ones again (one-shot: 4776 -> 3951 page faults).
         pool.reserve_room(w * h);
         self.flows.reserve_room(w * h);
+        // A step at full resolution (a level there, a polish, the motion-boundary
+        // selection) needs RGB input's luma there: made once, and level 1 is downsampled
+        // from it (the values `downsample_luma` gives, bit for bit).
+        let at_full = finest == 0 || polish || prm.boundary_passes > 0;
+        let rgb_luma = match base {
+            Base::Rgb(images) if at_full => Some(images.map(|i| luma_plane(i, pool))),
+            _ => None,
+        };
+        let base = match &rgb_luma {
+            Some([first, second]) => Base::Gray([first, second]),
+            None => base,
+        };
         // Level l of both pyramids, from level 1 on (level 0 is the input itself).
         let mut p0: Vec<Plane> = Vec::with_capacity(coarsest);
         let mut p1: Vec<Plane> = Vec::with_capacity(coarsest);
@@ -512,15 +524,7 @@ impl DisFlow {
                 candidates: hint_candidates(None, 1.0),
             })
         };
-        if full_step.is_some() || prm.boundary_passes > 0 {
-            let rgb_luma = match base {
-                Base::Gray(_) => [Vec::new(), Vec::new()],
-                Base::Rgb(images) => images.map(|i| luma_plane(i, pool)),
-            };
-            let [first, second] = match base {
-                Base::Gray(images) => images,
-                Base::Rgb(_) => rgb_luma.each_ref().map(Vec::as_slice),
-            };
+        if let (true, Base::Gray([first, second])) = (at_full, base) {
             if let Some(step) = full_step {
                 self.level(first, second, w, h, &mut flow, &step);
             }
@@ -537,9 +541,9 @@ impl DisFlow {
                 prm.boundary_reach_px,
                 &self.flows,
             );
-            for plane in rgb_luma {
-                pool.put(plane);
-            }
+        }
+        for plane in rgb_luma.into_iter().flatten() {
+            pool.put(plane);
         }
         for p in p0.into_iter().chain(p1) {
             self.buffers.put(p.data);
@@ -634,7 +638,7 @@ enum Base<'a> {
     Gray([&'a [f32]; 2]),
     /// RGB: the first downsampling converts it to luma on the fly ([`downsample_luma`]),
     /// so the full-resolution luma is made only when a level or the motion-boundary
-    /// selection runs there.
+    /// selection runs there (then once, and the pyramid starts from it).
     Rgb([ImageView<'a, [u8; 3]>; 2]),
 }
 

@@ -52,6 +52,77 @@ fn write_dataset(root: &Path) {
     }
 }
 
+#[test]
+fn a_lower_ceiling_floor_separates_motions_the_default_floor_joins() {
+    // A pack: the static segmenter merges its look-alike boxes.
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("packed");
+    let gen_args = [
+        "gen", "--layout", "packed", "--scenes", "1", "--pushes", "1",
+    ];
+    let out = riseg(
+        &[
+            &gen_args[..],
+            &["--seed", "1", "--out", data.to_str().unwrap()],
+        ]
+        .concat(),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let scene = data.join("scene_000");
+    let labels = object_labels(&scene);
+    // Object l moves 2 cm + 0.7 mm · l: neighbours in label order differ by 0.7 mm, below
+    // the default 1 mm floor and above a 0.5 mm one.
+    write_poses(&scene, &labels, 2, |l| 0.02 + 0.0007 * f64::from(l));
+    let ceiling_at = |floor_mm: Option<&str>| {
+        let json = dir.path().join("floor.json");
+        let mut args = vec!["eval", "--gt", data.to_str().unwrap(), "--pred"];
+        args.extend([data.to_str().unwrap(), "--json", json.to_str().unwrap()]);
+        if let Some(mm) = floor_mm {
+            args.extend(["--ceiling-floor-mm", mm]);
+        }
+        let out = riseg(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let report: EvalReport =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        report.ceiling.expect("a ceiling")[1].objects_f75_pct
+    };
+    assert_eq!(
+        ceiling_at(Some("0.5")),
+        100.0,
+        "every motion apart: the ground truth"
+    );
+    let default = ceiling_at(None);
+    assert!(
+        default < 100.0,
+        "at 1 mm some touching pair stays merged: {default}"
+    );
+    assert_eq!(ceiling_at(Some("1")), default);
+    for bad in ["0", "-1", "nan", "11"] {
+        let out = riseg(&[
+            "eval",
+            "--gt",
+            data.to_str().unwrap(),
+            "--pred",
+            data.to_str().unwrap(),
+            &format!("--ceiling-floor-mm={bad}"),
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{bad}");
+        assert!(
+            stderr.contains("--ceiling-floor-mm") && stderr.contains("millimetres above 0"),
+            "{bad}: {stderr}"
+        );
+    }
+}
+
 fn riseg(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_riseg"))
         .args(args)

@@ -10,7 +10,7 @@
 //! against the simulator's ground truth three times: the static segmentation of that frame
 //! (the `static` rows), the accumulated RISeg mask (the `riseg` rows; at `t = 0` both are
 //! the static segmentation), and the motion ceiling of the episode's frames `0..=t`
-//! ([`crate::eval::ceiling`], [`CeilingParams::DEFAULT`]; the `ceiling` rows), computed from the
+//! ([`crate::eval::ceiling`], [`BenchConfig::ceiling`]; the `ceiling` rows), computed from the
 //! same static segmentations and the simulator's true object poses. Row `t` averages the
 //! scenes that reached frame `t`; RISeg's share of the ceiling at push `t` is the ratio of
 //! the two rows' objects-found percentages. Timing is the
@@ -116,6 +116,8 @@ pub struct BenchConfig {
     pub segmenter: SegmenterParams,
     /// Optical flow preset.
     pub flow: FlowParams,
+    /// The motion ceiling's floors (also those of [`moved_part_of_a_segment`]).
+    pub ceiling: CeilingParams,
 }
 
 impl BenchConfig {
@@ -135,6 +137,7 @@ impl BenchConfig {
             core,
             segmenter,
             flow,
+            ceiling: CeilingParams::DEFAULT,
         }
     }
 }
@@ -218,7 +221,7 @@ pub fn run_scene_with(
     let mut static_metrics = Vec::new();
     let mut riseg_metrics = Vec::new();
     let mut ceiling_metrics = Vec::new();
-    let mut ceiling = MotionCeiling::new(CeilingParams::DEFAULT);
+    let mut ceiling = MotionCeiling::new(cfg.ceiling);
     let mut partial_pushes = Vec::new();
     // The previous frame's ground truth, static segmentation and poses.
     let mut previous: Option<PushStart> = None;
@@ -239,7 +242,7 @@ pub fn run_scene_with(
             let start = PushStart::of(f)?;
             if let Some(before) = &previous {
                 partial_pushes.push(
-                    moved_part_of_a_segment(&before.frame(), &start.poses, &CeilingParams::DEFAULT)
+                    moved_part_of_a_segment(&before.frame(), &start.poses, &cfg.ceiling)
                         .map_err(|e| format!("push {}: {e}", f.t))?,
                 );
             }
@@ -693,6 +696,7 @@ mod command {
 
     use crate::cli::LayoutArg;
     use crate::cli::config::ConfigArg;
+    use crate::cli::eval::CeilingArg;
     use crate::cli::models::Models;
 
     pub(in crate::cli) const BENCH_HELP: &str = "\
@@ -712,7 +716,8 @@ and splits by motion can reach after the pushes so far: the ground truth, with t
 touching objects (at most 2 background pixels apart along a row or column) merged when \
 every static segmentation so far put them in one segment (the segment covering most of \
 each object) and every push so far moved them alike (their true rigid motions agree \
-within 1 mm at either object's centre and 1.5 degrees); merges chain through touching \
+within 1 mm at either object's centre and 1.5 degrees; --ceiling-floor-mm sets another \
+floor); merges chain through touching \
 neighbours, most alike first, but a group never holds two objects that a push moved \
 differently. RISeg is judged as a share of it.
 
@@ -722,7 +727,7 @@ the table, per push: RISeg / ceiling, the ratio of their objects-found columns; 
 many of the pushes made at that index moved part of a merged segment: some segment of \
 the static segmentation before the push holds two or more objects (an object belongs to \
 the segment covering most of it) and the push moved one of them (its true motion \
-exceeds 1 mm or 1.5 degrees) but not another alike with it. Only such a push gives \
+exceeds the ceiling's floors) but not another alike with it. Only such a push gives \
 motion something to split; moving a merged segment as one piece, or an object the static \
 segmenter already found alone, does not. Then the median milliseconds per step of each \
 stage: segment (static segmentation), flow (one thread), frames, twists, grouping, mask \
@@ -761,6 +766,8 @@ Example:
         models: Models,
         #[command(flatten)]
         config: ConfigArg,
+        #[command(flatten)]
+        ceiling: CeilingArg,
     }
 
     pub(in crate::cli) fn command(args: &BenchArgs) -> anyhow::Result<()> {
@@ -774,6 +781,7 @@ Example:
             core: settings.core,
             segmenter: settings.segmenter,
             flow: settings.flow,
+            ceiling: args.ceiling.params(),
             ..BenchConfig::new(args.scenes, args.seed)
         };
         let bar = ProgressBar::new(args.scenes as u64).with_style(

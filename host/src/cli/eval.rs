@@ -571,7 +571,7 @@ ground truth with two touching objects (at most 2 background pixels apart along 
 column) merged when every static segmentation of frames 0..t (the built-in segmenter's,
 as `riseg run` uses) put them in one segment (the segment covering most of each object)
 and every push so far moved them alike (true rigid motions within 1 mm at either
-object's centre and 1.5 degrees); merges chain through touching neighbours, most alike
+object's centre and 1.5 degrees; --ceiling-floor-mm sets another floor); merges chain through touching neighbours, most alike
 first, but a group never holds two objects that a push moved differently. Below it, per
 push: prediction / ceiling, the ratio of the objects-found columns. A malformed
 poses.json stops the run with an error naming it; without poses.json in every scene the
@@ -596,6 +596,26 @@ Example:
         /// ceiling (give `riseg run` the same file). See `riseg config --help`.
         #[arg(long, value_name = "FILE")]
         config: Option<PathBuf>,
+        #[command(flatten)]
+        ceiling: CeilingArg,
+    }
+
+    /// The motion ceiling's noise floor, shared by `eval` and `bench`.
+    #[derive(Debug, Clone, Copy, Args)]
+    pub(in crate::cli) struct CeilingArg {
+        /// The motion ceiling's floor: two motions whose images of either object's centre
+        /// lie at most MM apart (and whose rotations differ by at most 1.5 degrees per
+        /// millimetre) count as one. A lower floor is a stricter yardstick for a method
+        /// that resolves finer motion differences.
+        #[arg(long, value_name = "MM", default_value_t = 1.0, value_parser = crate::cli::ceiling_floor_mm)]
+        ceiling_floor_mm: f32,
+    }
+
+    impl CeilingArg {
+        /// The ceiling's parameters at this floor.
+        pub(in crate::cli) fn params(self) -> CeilingParams {
+            CeilingParams::with_floor_m(self.ceiling_floor_mm / 1000.0)
+        }
     }
 
     pub(in crate::cli) fn command(args: &EvalArgs) -> anyhow::Result<()> {
@@ -620,7 +640,7 @@ Example:
         let mut segmenter = ClassicalSegmenter::new(settings.segmenter)?;
         let report = eval::evaluate(&pairs, || bar.inc(1)).and_then(|mut report| {
             if let DatasetPoses::All(scenes) = &poses {
-                let params = CeilingParams::DEFAULT;
+                let params = args.ceiling.params();
                 let rows = eval::evaluate_ceiling(scenes, &mut segmenter, &params, || bar.inc(1))?;
                 report.ceiling = Some(rows);
             }

@@ -246,6 +246,19 @@ fn thread_count(text: &str) -> Result<usize, String> {
     bounded(text, 0, MAX_THREADS)
 }
 
+/// Largest `--ceiling-floor-mm`: beyond a centimetre every push counts as alike.
+pub const MAX_CEILING_FLOOR_MM: f32 = 10.0;
+
+/// Parses `--ceiling-floor-mm`: above 0 up to [`MAX_CEILING_FLOOR_MM`].
+fn ceiling_floor_mm(text: &str) -> Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(mm) if mm > 0.0 && mm <= MAX_CEILING_FLOOR_MM => Ok(mm),
+        _ => Err(format!(
+            "expected millimetres above 0 and at most {MAX_CEILING_FLOOR_MM}"
+        )),
+    }
+}
+
 fn bounded(text: &str, min: usize, max: usize) -> Result<usize, String> {
     match text.parse::<usize>() {
         Ok(n) if (min..=max).contains(&n) => Ok(n),

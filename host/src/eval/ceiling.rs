@@ -89,6 +89,21 @@ impl CeilingParams {
     };
 }
 
+impl CeilingParams {
+    /// [`Self::DEFAULT`] with the translation floor `trans_floor_m` and the rotation floor
+    /// scaled with it (so it stays the translation floor at an object's rim), e.g. a
+    /// stricter yardstick for a method that resolves motions finer than 1 mm.
+    #[must_use]
+    pub fn with_floor_m(trans_floor_m: f32) -> Self {
+        let d = Self::DEFAULT;
+        Self {
+            trans_floor_m,
+            rot_floor_rad: d.rot_floor_rad * (trans_floor_m / d.trans_floor_m),
+            ..d
+        }
+    }
+}
+
 impl Default for CeilingParams {
     fn default() -> Self {
         Self::DEFAULT
@@ -709,6 +724,33 @@ mod tests {
             [&b0, &spin(&b0, -0.6)],
             &p
         ));
+    }
+
+    #[test]
+    fn a_lower_floor_separates_what_the_default_floor_joins() {
+        let a0 = Pose::translation(0.0, 0.0, 0.0);
+        let b0 = Pose::translation(0.05, 0.0, 0.0);
+        let shift = |pose: &Pose, dx: f32| Pose::translation(dx, 0.0, 0.0) * pose;
+        let spin = |pose: &Pose, deg: f32| {
+            Pose::from_parts(
+                pose.translation,
+                Pose::rotation(Vector3::z() * deg.to_radians()).rotation * pose.rotation,
+            )
+        };
+        // 0.7 mm apart, and in-place turns 1 degree apart (each moving the other's centre
+        // by 0.44 mm): alike at 1 mm (1.5 degrees), not at 0.5 mm (0.75 degrees).
+        let pushed = ([&a0, &shift(&a0, 0.0207)], [&b0, &shift(&b0, 0.02)]);
+        let turned = ([&a0, &spin(&a0, 0.5)], [&b0, &spin(&b0, -0.5)]);
+        let (one, half) = (
+            CeilingParams::with_floor_m(0.001),
+            CeilingParams::with_floor_m(0.0005),
+        );
+        assert_eq!(one, CeilingParams::DEFAULT);
+        assert!((half.rot_floor_rad - 0.75_f32.to_radians()).abs() < 1e-6);
+        for (a, b) in [pushed, turned] {
+            assert!(same_motion(a, b, &one));
+            assert!(!same_motion(a, b, &half));
+        }
     }
 
     #[test]

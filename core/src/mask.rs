@@ -290,45 +290,15 @@ fn correct_mask_in(
 
     // 5. Label.
     let (next, split_segments) = label_split_segments(seeds, count)?;
-    let mut entries = SegmentEntries::new(seeds);
     let window_labels = &mut labels_t1[..m];
-    let row_len = grid.width.max(1);
-    // Runs of pixels repeat one (segment, claim): look its label up once per run.
-    let mut run = (0u32, 0u16, 0u16);
-    for (y, ((out_row, seg_row), key_row)) in window_labels
-        .chunks_mut(row_len)
-        .zip(segment.chunks(row_len))
-        .zip(key.chunks_mut(row_len))
-        .enumerate()
-    {
-        let static_row = grid.static_row(static_t1, y);
-        for (x, ((out, &seg), k)) in out_row
-            .iter_mut()
-            .zip(seg_row)
-            .zip(key_row.iter_mut())
-            .enumerate()
-        {
-            let c = Growth::claim(*k);
-            if (seg, c) != (run.0, run.1) {
-                let mut label = seg as u16;
-                if c != 0 {
-                    let g = u32::from(c - 1);
-                    if let Some(entry) = entries.of(seg).iter().find(|s| s.group == g) {
-                        label = entry.label as u16;
-                    }
-                }
-                run = (seg, c, label);
-            }
-            *out = run.2;
-            *k = u32::from(run.2);
-            // The static label of each segment (segments never span two static segments:
-            // step 2 keys by the static label and absorbs fragments only within their
-            // static segment).
-            if let (Some(slot), Some(&st)) = (segs.key.get_mut(seg as usize), static_row.get(x)) {
-                *slot = u32::from(st);
-            }
-        }
-    }
+    label_pixels(
+        grid,
+        static_t1,
+        (segment, &*seeds),
+        key,
+        window_labels,
+        segs.key,
+    );
     let merged_segments = merge_same_motion(
         seeds,
         groups,
@@ -607,6 +577,17 @@ impl Growth {
         if state < 1 << 16 { state as u16 } else { 0 }
     }
 
+    /// Whether every state of `states` has claim `claim` (branch-free on [`RUN_LANES`]
+    /// states, so it vectorises).
+    fn all_claim(states: &[u32], claim: u16) -> bool {
+        match <&[u32; RUN_LANES]>::try_from(states) {
+            Ok(lanes) => lanes
+                .iter()
+                .fold(true, |all, &state| all & (Self::claim(state) == claim)),
+            Err(_) => states.iter().all(|&state| Self::claim(state) == claim),
+        }
+    }
+
     /// A seed of the region with claim `claim` (`group + 1`) takes an unclaimed pixel
     /// whatever its decision; `false` if the pixel is claimed already.
     const fn seed(state: &mut u32, claim: u16) -> bool {
@@ -622,6 +603,7 @@ impl Growth {
 /// `queue` (packed window pixels), over [`Growth`] states in `key`: each region takes
 /// the 4-neighbours of its pixels whose state it may take, in queue order. Branch-free per
 /// neighbour: the queue slot is written whether or not the neighbour is taken.
+#[inline(never)]
 fn grow_from_seeds(
     grid: Grid,
     segment: &[u32],
@@ -794,40 +776,132 @@ fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, ke
         }
         batch.len = 0;
     };
-    for (j, (&seg, &s)) in segment.iter().zip(source).enumerate() {
-        let candidates = if seg == 0 { &[] } else { entries.of(seg) };
-        if candidates.len() < 2 {
-            if let Some(slot) = key.get_mut(j) {
-                *slot = Growth::CLOSED;
+    // A segment whose pixels all close (background, or fewer than two entries): runs of
+    // it close eight pixels at once.
+    let mut closed = 0u32;
+    for (c, (seg_chunk, source_chunk)) in segment
+        .chunks(RUN_LANES)
+        .zip(source.chunks(RUN_LANES))
+        .enumerate()
+    {
+        let j0 = c * RUN_LANES;
+        if all_equal(seg_chunk, closed) {
+            if let Some(slots) = key.get_mut(j0..j0 + seg_chunk.len()) {
+                slots.fill(Growth::CLOSED);
             }
             continue;
         }
-        let observation = (s != NONE)
-            .then(|| {
-                let (sx, sy) = Grid::unpack(s);
-                let z = input.depth_t.get(sx, sy).copied().and_then(valid_depth)?;
-                let [dx, dy] = input.flow.get(sx, sy).copied()?;
-                let (u, v) = (sx as Real, sy as Real);
-                let p = [(u - k.cx) * z * inv_fx, (v - k.cy) * z * inv_fy, z];
-                Some((p, [u + dx, v + dy]))
-            })
-            .flatten();
-        let Some((p, observed)) = observation else {
-            if let Some(slot) = key.get_mut(j) {
-                *slot = Growth::open(seg, HOLE);
+        for (j, (&seg, &s)) in (j0..).zip(seg_chunk.iter().zip(source_chunk)) {
+            let candidates = if seg == 0 { &[] } else { entries.of(seg) };
+            if candidates.len() < 2 {
+                if let Some(slot) = key.get_mut(j) {
+                    *slot = Growth::CLOSED;
+                }
+                closed = seg;
+                continue;
             }
-            continue;
-        };
-        if batch.len > 0 && !core::ptr::eq(candidates, batch_candidates) {
-            flush(&mut batch, batch_candidates, key);
-        }
-        batch_candidates = candidates;
-        if !batch.push(j, p, observed) {
-            flush(&mut batch, batch_candidates, key);
-            batch.push(j, p, observed);
+            let observation = (s != NONE)
+                .then(|| {
+                    let (sx, sy) = Grid::unpack(s);
+                    let z = input.depth_t.get(sx, sy).copied().and_then(valid_depth)?;
+                    let [dx, dy] = input.flow.get(sx, sy).copied()?;
+                    let (u, v) = (sx as Real, sy as Real);
+                    let p = [(u - k.cx) * z * inv_fx, (v - k.cy) * z * inv_fy, z];
+                    Some((p, [u + dx, v + dy]))
+                })
+                .flatten();
+            let Some((p, observed)) = observation else {
+                if let Some(slot) = key.get_mut(j) {
+                    *slot = Growth::open(seg, HOLE);
+                }
+                continue;
+            };
+            if batch.len > 0 && !core::ptr::eq(candidates, batch_candidates) {
+                flush(&mut batch, batch_candidates, key);
+            }
+            batch_candidates = candidates;
+            if !batch.push(j, p, observed) {
+                flush(&mut batch, batch_candidates, key);
+                batch.push(j, p, observed);
+            }
         }
     }
     flush(&mut batch, batch_candidates, key);
+}
+
+/// Step 5's pixels: writes to `window_labels` each pixel's label (its claiming group's
+/// entry label in `seeds`, else its segment id) and to `key` the same label, and to
+/// `static_of` each segment's static label. `key` holds [`Growth`] states on entry.
+fn label_pixels(
+    grid: Grid,
+    static_t1: &ImageView<'_, u16>,
+    (segment, seeds): (&[u32], &[SegmentSeeds]),
+    key: &mut [u32],
+    window_labels: &mut [u16],
+    static_of: &mut [u32],
+) {
+    let mut entries = SegmentEntries::new(seeds);
+    let row_len = grid.width.max(1);
+    // Runs of pixels repeat one (segment, claim): look its label up once per run.
+    let mut run = (0u32, 0u16, 0u16);
+    for (y, ((out_row, seg_row), key_row)) in window_labels
+        .chunks_mut(row_len)
+        .zip(segment.chunks(row_len))
+        .zip(key.chunks_mut(row_len))
+        .enumerate()
+    {
+        let static_row = grid.static_row(static_t1, y);
+        for (c, ((out_chunk, seg_chunk), key_chunk)) in out_row
+            .chunks_mut(RUN_LANES)
+            .zip(seg_row.chunks(RUN_LANES))
+            .zip(key_row.chunks_mut(RUN_LANES))
+            .enumerate()
+        {
+            let x0 = c * RUN_LANES;
+            // Inside a run (one segment, one claim), eight pixels at once; the segment's
+            // static label is the one its last pixel here writes.
+            if all_equal(seg_chunk, run.0) && Growth::all_claim(key_chunk, run.1) {
+                out_chunk.fill(run.2);
+                key_chunk.fill(u32::from(run.2));
+                let statics = static_row.get(x0..(x0 + seg_chunk.len()).min(static_row.len()));
+                if let (Some(slot), Some(&st)) = (
+                    static_of.get_mut(run.0 as usize),
+                    statics.and_then(<[u16]>::last),
+                ) {
+                    *slot = u32::from(st);
+                }
+                continue;
+            }
+            for (x, ((out, &seg), k)) in (x0..).zip(
+                out_chunk
+                    .iter_mut()
+                    .zip(seg_chunk)
+                    .zip(key_chunk.iter_mut()),
+            ) {
+                let c = Growth::claim(*k);
+                if (seg, c) != (run.0, run.1) {
+                    let mut label = seg as u16;
+                    if c != 0 {
+                        let g = u32::from(c - 1);
+                        if let Some(entry) = entries.of(seg).iter().find(|s| s.group == g) {
+                            label = entry.label as u16;
+                        }
+                    }
+                    run = (seg, c, label);
+                }
+                *out = run.2;
+                *k = u32::from(run.2);
+                // The static label of each segment (segments never span two static
+                // segments: step 2 keys by the static label and absorbs fragments only
+                // within their static segment).
+                if let (Some(slot), Some(&st)) =
+                    (static_of.get_mut(seg as usize), static_row.get(x))
+                {
+                    *slot = u32::from(st);
+                }
+            }
+        }
+    }
 }
 
 /// Step 3, motions: each moving group's rigid motion in the camera frame ([`fit_motion`],
@@ -1142,36 +1216,30 @@ fn label_segments(
         } else {
             (keys, keys)
         };
-        let mut left = (0u32, 0u32); // (key, provisional label) of the pixel to the left
-        // The label above last united with (or taken by) the current run: runs above
-        // repeat one label over many pixels, so each pair of runs unites once.
-        let mut joined_up = 0u32;
-        for ((l, &k), (&ka, &la)) in here.iter_mut().zip(keys).zip(keys_above.iter().zip(above)) {
-            if k == 0 {
-                *l = 0;
-                left = (0, 0);
+        let mut scan = RowScan::new(has_above);
+        let (here8, here_rest) = here.as_chunks_mut::<RUN_LANES>();
+        let (keys8, keys_rest) = keys.as_chunks::<RUN_LANES>();
+        let (above8, above_rest) = above.as_chunks::<RUN_LANES>();
+        let (keys_above8, keys_above_rest) = keys_above.as_chunks::<RUN_LANES>();
+        for ((l8, k8), (ka8, la8)) in here8
+            .iter_mut()
+            .zip(keys8)
+            .zip(keys_above8.iter().zip(above8))
+        {
+            if scan.continues(k8, ka8, la8) {
+                *l8 = [scan.left.1; RUN_LANES];
                 continue;
             }
-            let up = if has_above && ka == k { la } else { 0 };
-            let label = if left.0 == k {
-                if up != 0 && up != left.1 && up != joined_up {
-                    union(parent, left.1 as usize - 1, up as usize - 1);
-                    joined_up = up;
-                }
-                left.1
-            } else if up != 0 {
-                joined_up = up;
-                up
-            } else {
-                if let Some(p) = parent.get_mut(made as usize) {
-                    *p = made;
-                }
-                made += 1;
-                joined_up = 0;
-                made
-            };
-            *l = label;
-            left = (k, label);
+            for ((l, &k), (&ka, &la)) in l8.iter_mut().zip(k8).zip(ka8.iter().zip(la8)) {
+                *l = scan.pixel(parent, &mut made, k, ka, la);
+            }
+        }
+        for ((l, &k), (&ka, &la)) in here_rest
+            .iter_mut()
+            .zip(keys_rest)
+            .zip(keys_above_rest.iter().zip(above_rest))
+        {
+            *l = scan.pixel(parent, &mut made, k, ka, la);
         }
     }
     // Final ids in order of the roots (first pixels in scan order); parents are smaller,
@@ -1201,23 +1269,37 @@ fn label_segments(
     // all hold its key).
     let (mut last, mut id) = (0u32, 0u32);
     let mut run = 0u32;
-    for (s, &k) in segment.iter_mut().zip(key) {
-        if *s != last {
-            last = *s;
-            if let Some(size) = segs.size.get_mut(id as usize) {
-                *size += run;
-            }
-            run = 0;
-            id = match last.checked_sub(1) {
-                Some(l) => parent.get(l as usize).copied().unwrap_or(0),
-                None => 0,
-            };
-            if let (true, Some(kk)) = (id != 0, segs.key.get_mut(id as usize)) {
-                *kk = k;
-            }
+    let (segment8, segment_rest) = segment.as_chunks_mut::<RUN_LANES>();
+    let (key8, key_rest) = key.as_chunks::<RUN_LANES>();
+    let chunks = segment8
+        .iter_mut()
+        .zip(key8)
+        .map(|(s, k)| (s.as_mut_slice(), k.as_slice()));
+    for (s_chunk, k_chunk) in chunks.chain([(segment_rest, key_rest)]) {
+        // Inside a run, eight pixels at once.
+        if s_chunk.len() == RUN_LANES && all_equal(s_chunk, last) {
+            s_chunk.fill(id);
+            run += RUN_LANES as u32;
+            continue;
         }
-        *s = id;
-        run += 1;
+        for (s, &k) in s_chunk.iter_mut().zip(k_chunk) {
+            if *s != last {
+                last = *s;
+                if let Some(size) = segs.size.get_mut(id as usize) {
+                    *size += run;
+                }
+                run = 0;
+                id = match last.checked_sub(1) {
+                    Some(l) => parent.get(l as usize).copied().unwrap_or(0),
+                    None => 0,
+                };
+                if let (true, Some(kk)) = (id != 0, segs.key.get_mut(id as usize)) {
+                    *kk = k;
+                }
+            }
+            *s = id;
+            run += 1;
+        }
     }
     if let Some(size) = segs.size.get_mut(id as usize) {
         *size += run;
@@ -1227,6 +1309,90 @@ fn label_segments(
     }
     join_small_segments(grid, segment, count, min_px, segs);
     Ok(count)
+}
+
+/// Pixels the per-pixel passes of [`label_segments`] take at once inside a run (a run of
+/// equal entries, where nothing but the run's own value is written).
+const RUN_LANES: usize = 8;
+
+/// Whether every entry of `chunk` equals `v` (branch-free on [`RUN_LANES`] entries, so
+/// it vectorises).
+#[inline]
+fn all_equal(chunk: &[u32], v: u32) -> bool {
+    match <&[u32; RUN_LANES]>::try_from(chunk) {
+        Ok(lanes) => lanes.iter().fold(0, |any, &x| any | (x ^ v)) == 0,
+        Err(_) => chunk.iter().all(|&x| x == v),
+    }
+}
+
+/// Pass 1 of [`label_segments`] along one row.
+struct RowScan {
+    has_above: bool,
+    /// (key, provisional label) of the pixel to the left.
+    left: (u32, u32),
+    /// The label above last united with (or taken by) the current run: runs above
+    /// repeat one label over many pixels, so each pair of runs unites once.
+    joined_up: u32,
+}
+
+impl RowScan {
+    const fn new(has_above: bool) -> Self {
+        Self {
+            has_above,
+            left: (0, 0),
+            joined_up: 0,
+        }
+    }
+
+    /// The provisional label of a pixel with key `k`, whose upper neighbour has key `ka`
+    /// and label `la`; makes a label (`made`) or unites two in `parent` as needed.
+    #[inline]
+    fn pixel(&mut self, parent: &mut [u32], made: &mut u32, k: u32, ka: u32, la: u32) -> u32 {
+        if k == 0 {
+            self.left = (0, 0);
+            return 0;
+        }
+        let up = if self.has_above && ka == k { la } else { 0 };
+        let label = if self.left.0 == k {
+            if up != 0 && up != self.left.1 && up != self.joined_up {
+                union(parent, self.left.1 as usize - 1, up as usize - 1);
+                self.joined_up = up;
+            }
+            self.left.1
+        } else if up != 0 {
+            self.joined_up = up;
+            up
+        } else {
+            if let Some(p) = parent.get_mut(*made as usize) {
+                *p = *made;
+            }
+            *made += 1;
+            self.joined_up = 0;
+            *made
+        };
+        self.left = (k, label);
+        label
+    }
+
+    /// Whether [`RowScan::pixel`] on these eight pixels would give each the label to the
+    /// left and change nothing: every key is the left key (background included), and no
+    /// upper neighbour of that key brings a label not yet united with the run.
+    #[inline]
+    fn continues(
+        &self,
+        keys: &[u32; RUN_LANES],
+        keys_above: &[u32; RUN_LANES],
+        labels_above: &[u32; RUN_LANES],
+    ) -> bool {
+        let (lk, ll, ju) = (self.left.0, self.left.1, self.joined_up);
+        let above = self.has_above;
+        keys.iter()
+            .zip(keys_above)
+            .zip(labels_above)
+            .fold(true, |ok, ((&k, &ka), &la)| {
+                ok & (k == lk) & (!above | (ka != lk) | (la == 0) | (la == ll) | (la == ju))
+            })
+    }
 }
 
 /// Components smaller than `min_px` join their largest neighbouring component, by
@@ -1265,24 +1431,30 @@ fn join_small_segments(
         let whole = row.len() == width;
         let up = y > 0 && whole;
         let down = whole && (y + 2) * width <= len;
-        for (x, &a) in row.iter().enumerate() {
-            if a != last {
-                last = a;
-                small = a != 0 && ranked(a).0 < min_px;
-            }
-            if !small {
+        for (c, chunk) in row.chunks(RUN_LANES).enumerate() {
+            // Inside a run of a component that is not small, eight pixels at once.
+            if !small && all_equal(chunk, last) {
                 continue;
             }
-            let i = y * width + x;
-            let near = [
-                (x > 0).then(|| i - 1),
-                (x + 1 < row.len()).then_some(i + 1),
-                up.then(|| i - width),
-                down.then_some(i + width),
-            ];
-            for j in near.into_iter().flatten() {
-                if let Some(&b) = segment.get(j) {
-                    offer(a, b);
+            for (x, &a) in (c * RUN_LANES..).zip(chunk) {
+                if a != last {
+                    last = a;
+                    small = a != 0 && ranked(a).0 < min_px;
+                }
+                if !small {
+                    continue;
+                }
+                let i = y * width + x;
+                let near = [
+                    (x > 0).then(|| i - 1),
+                    (x + 1 < row.len()).then_some(i + 1),
+                    up.then(|| i - width),
+                    down.then_some(i + width),
+                ];
+                for j in near.into_iter().flatten() {
+                    if let Some(&b) = segment.get(j) {
+                        offer(a, b);
+                    }
                 }
             }
         }
@@ -1304,13 +1476,27 @@ fn join_small_segments(
             *t = id;
         }
     }
-    let (mut last, mut into) = (0u32, 0u32);
-    for s in segment.iter_mut() {
-        if *s != last {
-            last = *s;
-            into = target.get(last as usize).copied().unwrap_or(last);
+    relabel_runs(segment, |s| target.get(s as usize).copied().unwrap_or(s));
+}
+
+/// Replaces each entry `s` of `segment` by `map(s)`; `map` is called once per run of equal
+/// entries (and once ahead of them for `0`).
+fn relabel_runs(segment: &mut [u32], mut map: impl FnMut(u32) -> u32) {
+    let (mut last, mut into) = (0u32, map(0));
+    let (chunks, rest) = segment.as_chunks_mut::<RUN_LANES>();
+    for chunk in chunks.iter_mut().map(|c| c.as_mut_slice()).chain([rest]) {
+        // Inside a run, eight pixels at once.
+        if chunk.len() == RUN_LANES && all_equal(chunk, last) {
+            chunk.fill(into);
+            continue;
         }
-        *s = into;
+        for s in chunk {
+            if *s != last {
+                last = *s;
+                into = map(last);
+            }
+            *s = into;
+        }
     }
 }
 
@@ -1386,13 +1572,10 @@ fn absorb_fragments(
             *slot = into;
         }
     }
-    for s in segment.iter_mut() {
-        if *s != 0
-            && let Some(&into) = segs.key.get(*s as usize)
-        {
-            *s = into;
-        }
-    }
+    relabel_runs(segment, |s| match s {
+        0 => 0,
+        s => segs.key.get(s as usize).copied().unwrap_or(s),
+    });
 }
 
 /// Step 6 (module docs): unites the labels of moving groups from different segments at
@@ -1931,6 +2114,62 @@ mod tests {
         (size.len() - 1, joined, size, keys)
     }
 
+    /// `label_segments` on `key` against [`flood_fill_reference`].
+    fn check_labelling(
+        width: usize,
+        key: &[u32],
+        min_px: u32,
+    ) -> Result<(), proptest::test_runner::TestCaseError> {
+        let height = key.len() / width;
+        let key = &key[..width * height];
+        let n = key.len();
+        let (mut segment, mut queue) = (vec![0u32; n], vec![0u32; n]);
+        let (mut size, mut target, mut seg_key) = (
+            vec![0u32; MAX_SEGMENTS + 1],
+            vec![0u32; MAX_SEGMENTS + 1],
+            vec![0u32; MAX_SEGMENTS + 1],
+        );
+        let mut segs = Segments {
+            size: &mut size,
+            target: &mut target,
+            key: &mut seg_key,
+        };
+        let count = label_segments(
+            Grid::whole(width, height),
+            key,
+            min_px,
+            &mut segment,
+            &mut queue,
+            &mut segs,
+        )
+        .unwrap();
+        let (expected_count, expected, sizes, keys) = flood_fill_reference(width, key, min_px);
+        proptest::prop_assert_eq!(count, expected_count);
+        proptest::prop_assert_eq!(&segment, &expected);
+        proptest::prop_assert_eq!(&segs.size[1..=count], &sizes[1..]);
+        proptest::prop_assert_eq!(&segs.key[1..=count], &keys[1..]);
+        Ok(())
+    }
+
+    /// A `w × h` map of blocks (`bw × bh` cells, so runs span eight-pixel chunks) of
+    /// values below `values`, with single pixels of other values sprinkled in.
+    fn blocky(rng: &mut crate::rng::Pcg32, (w, h): (usize, usize), values: u32) -> Vec<u32> {
+        let (bw, bh) = (1 + rng.below(24) as usize, 1 + rng.below(6) as usize);
+        let cells: Vec<u32> = (0..(w / bw + 1) * (h / bh + 1))
+            .map(|_| rng.below(values))
+            .collect();
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                if rng.below(40) == 0 {
+                    rng.below(values)
+                } else {
+                    cells[(y / bh) * (w / bw + 1) + x / bw]
+                }
+            })
+            .collect()
+    }
+
     proptest::proptest! {
         #[test]
         fn two_pass_labelling_matches_a_flood_fill(
@@ -1938,22 +2177,35 @@ mod tests {
             cells in proptest::collection::vec(0u32..4, 1..400),
             min_px in 0u32..6,
         ) {
-            let height = cells.len() / width;
-            proptest::prop_assume!(height > 0);
-            let key = &cells[..width * height];
-            let n = key.len();
-            let (mut segment, mut queue) = (vec![0u32; n], vec![0u32; n]);
-            let (mut size, mut target, mut seg_key) =
-                (vec![0u32; MAX_SEGMENTS + 1], vec![0u32; MAX_SEGMENTS + 1], vec![0u32; MAX_SEGMENTS + 1]);
-            let mut segs = Segments { size: &mut size, target: &mut target, key: &mut seg_key };
-            let count =
-                label_segments(Grid::whole(width, height), key, min_px, &mut segment, &mut queue, &mut segs)
-                    .unwrap();
-            let (expected_count, expected, sizes, keys) = flood_fill_reference(width, key, min_px);
-            proptest::prop_assert_eq!(count, expected_count);
-            proptest::prop_assert_eq!(&segment, &expected);
-            proptest::prop_assert_eq!(&segs.size[1..=count], &sizes[1..]);
-            proptest::prop_assert_eq!(&segs.key[1..=count], &keys[1..]);
+            proptest::prop_assume!(cells.len() >= width);
+            check_labelling(width, &cells, min_px)?;
+        }
+
+        /// Blocks of keys, so that most pixels lie inside runs that the passes take eight
+        /// at a time (and runs above that bring labels to unite or not).
+        #[test]
+        fn run_labelling_of_blocks_matches_a_flood_fill(seed in proptest::prelude::any::<u64>()) {
+            let mut rng = crate::rng::Pcg32::new(seed);
+            let (w, h) = (1 + rng.below(70) as usize, 1 + rng.below(30) as usize);
+            let values = 1 + rng.below(4);
+            let key = blocky(&mut rng, (w, h), values);
+            check_labelling(w, &key, rng.below(40))?;
+        }
+
+        /// `relabel_runs` maps every entry as mapping each one by itself does.
+        #[test]
+        fn relabelling_by_runs_maps_each_entry(seed in proptest::prelude::any::<u64>()) {
+            let mut rng = crate::rng::Pcg32::new(seed);
+            let (w, h) = (1 + rng.below(70) as usize, 1 + rng.below(10) as usize);
+            let mut segment = blocky(&mut rng, (w, h), 6);
+            let table: Vec<u32> = (0..5).map(|_| rng.below(9)).collect();
+            let map = |s: u32| match s {
+                0 => 0,
+                s => table.get(s as usize).copied().unwrap_or(s),
+            };
+            let expected: Vec<u32> = segment.iter().map(|&s| map(s)).collect();
+            relabel_runs(&mut segment, map);
+            proptest::prop_assert_eq!(segment, expected);
         }
     }
 
@@ -2280,6 +2532,154 @@ mod tests {
             }
             let decisions = batch.decide(&entries, &motions, &k, tol2);
             proptest::prop_assert_eq!(&decisions[..truth.len()], &truth[..]);
+        }
+    }
+
+    /// Segment entries for segments `1..=segments` of a blocky map: each with `0..=3`
+    /// groups (of `groups`), sorted, labels past `segments`.
+    fn random_entries(
+        rng: &mut crate::rng::Pcg32,
+        segments: u32,
+        groups: u32,
+    ) -> Vec<SegmentSeeds> {
+        let mut next = segments + 1;
+        let mut entries = Vec::new();
+        for seg in 1..=segments {
+            let mut g = rng.below(2);
+            for _ in 0..rng.below(4) {
+                if g >= groups {
+                    break;
+                }
+                entries.push(SegmentSeeds {
+                    segment: seg,
+                    group: g,
+                    seeds: 3,
+                    label: next,
+                });
+                next += 1;
+                g += 1 + rng.below(2);
+            }
+        }
+        entries
+    }
+
+    proptest::proptest! {
+        /// `decide_pixels` (runs of closed segments eight pixels at a time) writes the
+        /// states the pixel-by-pixel rule gives: closed outside segments with two or more
+        /// entries, a hole without an observation, else the one-pixel decision.
+        #[test]
+        fn decisions_by_runs_are_the_pixel_by_pixel_states(seed in proptest::prelude::any::<u64>()) {
+            use crate::rng::Pcg32;
+            let mut rng = Pcg32::new(seed);
+            let (w, h) = (1 + rng.below(60) as usize, 1 + rng.below(12) as usize);
+            let n = w * h;
+            let segment = blocky(&mut rng, (w, h), 5);
+            let groups = 1 + rng.below(4);
+            let seeds = random_entries(&mut rng, 4, groups);
+            let source: Vec<u32> = (0..n)
+                .map(|_| match rng.below(6) {
+                    0 => NONE,
+                    _ => Grid::pack(rng.below(w as u32) as usize, rng.below(h as u32) as usize),
+                })
+                .collect();
+            let labels = vec![1u16; n];
+            let depth: Vec<Real> =
+                (0..n).map(|_| if rng.below(8) == 0 { 0.0 } else { 0.5 + 0.2 * rng.unit() }).collect();
+            let flow: Vec<[Real; 2]> =
+                (0..n).map(|_| [2.0 * rng.unit() - 1.0, 2.0 * rng.unit() - 1.0]).collect();
+            let input = still_input(w, h, &labels, &depth, &flow);
+            let motions: Vec<Pose> = (0..groups)
+                .map(|g| Pose::from(Translation3::new(0.002 * g as Real, -0.001 * g as Real, 0.0)))
+                .collect();
+            let cfg = Config::PAPER;
+            let mut key = vec![7u32; n];
+            decide_pixels(
+                &input,
+                &cfg,
+                Regions { segment: &segment, seeds: &seeds, motions: &motions, source: &source },
+                &mut key,
+            );
+            let k = input.intrinsics;
+            let expected: Vec<u32> = segment
+                .iter()
+                .zip(&source)
+                .enumerate()
+                .map(|(j, (&seg, &s))| {
+                    let candidates = if seg == 0 { &[][..] } else { groups_in(&seeds, seg) };
+                    if candidates.len() < 2 {
+                        return Growth::CLOSED;
+                    }
+                    let (sx, sy) = Grid::unpack(s);
+                    let observation = (s != NONE)
+                        .then(|| {
+                            let z = input.depth_t.get(sx, sy).copied().and_then(valid_depth)?;
+                            let [dx, dy] = *input.flow.get(sx, sy)?;
+                            let (u, v) = (sx as Real, sy as Real);
+                            let p = [(u - k.cx) * z * (1.0 / k.fx), (v - k.cy) * z * (1.0 / k.fy), z];
+                            Some((p, [u + dx, v + dy]))
+                        })
+                        .flatten();
+                    let Some((p, observed)) = observation else {
+                        return Growth::open(seg, HOLE);
+                    };
+                    let mut batch = PixelBatch::EMPTY;
+                    batch.push(j, p, observed);
+                    let tol2 = cfg.grow_tol_px * cfg.grow_tol_px;
+                    Growth::open(seg, batch.decide(candidates, &motions, &k, tol2)[0])
+                })
+                .collect();
+            proptest::prop_assert_eq!(key, expected);
+        }
+
+        /// `label_pixels` (runs eight pixels at a time) writes the labels, keys and static
+        /// labels the pixel-by-pixel loop wrote.
+        #[test]
+        fn labels_by_runs_are_the_pixel_by_pixel_labels(seed in proptest::prelude::any::<u64>()) {
+            use crate::rng::Pcg32;
+            let mut rng = Pcg32::new(seed);
+            let (iw, ih) = (1 + rng.below(60) as usize, 1 + rng.below(12) as usize);
+            let (x0, y0) = (rng.below(iw as u32) as usize, rng.below(ih as u32) as usize);
+            let grid = Grid { x0, y0, width: iw - x0, height: ih - y0 };
+            let m = grid.width * grid.height;
+            let segment = blocky(&mut rng, (grid.width, grid.height), 5);
+            let seeds = random_entries(&mut rng, 4, 4);
+            // Claims of blocks of groups, open states and closed pixels.
+            let claims = blocky(&mut rng, (grid.width, grid.height), 6);
+            let key: Vec<u32> = claims
+                .iter()
+                .zip(&segment)
+                .map(|(&c, &seg)| if c == 5 { (seg << 16) | 1 } else { c })
+                .collect();
+            let statics: Vec<u16> = blocky(&mut rng, (iw, ih), 4).iter().map(|&v| v as u16).collect();
+            let static_t1 = ImageView::packed(iw, ih, &statics).unwrap();
+            let (mut labels, mut keys, mut static_of) = (vec![9u16; m], key.clone(), vec![77u32; 8]);
+            label_pixels(grid, &static_t1, (&segment, &seeds), &mut keys, &mut labels, &mut static_of);
+            // The loop as first written.
+            let (mut labels_ref, mut keys_ref, mut static_ref) = (vec![9u16; m], key, vec![77u32; 8]);
+            let mut run = (0u32, 0u16, 0u16);
+            for i in 0..m {
+                let (x, y) = (i % grid.width, i / grid.width);
+                let (seg, c) = (segment[i], Growth::claim(keys_ref[i]));
+                if (seg, c) != (run.0, run.1) {
+                    let mut label = seg as u16;
+                    if c != 0
+                        && let Some(e) = groups_in(&seeds, seg).iter().find(|s| s.group == u32::from(c - 1))
+                    {
+                        label = e.label as u16;
+                    }
+                    run = (seg, c, label);
+                }
+                labels_ref[i] = run.2;
+                keys_ref[i] = u32::from(run.2);
+                if let (Some(slot), Some(&st)) =
+                    (static_ref.get_mut(seg as usize), grid.static_row(&static_t1, y).get(x))
+                {
+                    *slot = u32::from(st);
+                }
+            }
+            proptest::prop_assert_eq!(labels, labels_ref);
+            proptest::prop_assert_eq!(keys, keys_ref);
+            proptest::prop_assert_eq!(static_of, static_ref);
         }
     }
 }

@@ -4,10 +4,10 @@
 use std::path::PathBuf;
 
 use crate::cli::models::{ModelArg, parse_model};
-use crate::flow::{DisFlow, FlowEstimator as _, FlowParams, viz::flow_to_rgb};
+use crate::flow::{DisFlow, FlowParams, luma_of, viz::flow_to_rgb};
 use crate::io::{
     Durability,
-    image::{read_png_as_rgb8, write_flo_as, write_rgb8_as},
+    image::{Image, read_png_as_rgb8_mapped, write_flo_as, write_rgb8_as},
 };
 use anyhow::{Context as _, bail};
 use clap::ValueEnum;
@@ -99,12 +99,50 @@ pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
         .use_current_thread()
         .build()
         .context("cannot start the worker threads")?;
+    let flow = match &args.flow {
+        // The built-in flow reads only the images' luma: made while decoding, row by row,
+        // the RGB images are never held (the flow `estimate` gives on them, bit for bit).
+        ModelArg::Builtin => {
+            let (first, second) = read_pair(args, luma_of)?;
+            DisFlow::new(params)?.estimate_gray(&first, &second)
+        }
+        #[cfg(feature = "onnx")]
+        ModelArg::Onnx(_) => {
+            let (first, second) = read_pair(args, |&rgb| rgb)?;
+            let estimator = args.flow.flow(|| DisFlow::new(params))?;
+            crate::flow::FlowEstimator::estimate(&estimator, first.view(), second.view())
+        }
+    }
+    .with_context(|| {
+        format!(
+            "flow from {} to {}",
+            args.first.display(),
+            args.second.display()
+        )
+    })?;
+    // Derived outputs: atomic, not flushed to disk (`Durability`'s contract).
+    write_flo_as(&args.output, &flow, Durability::Derived)?;
+    if let Some(viz) = &args.viz {
+        write_rgb8_as(viz, &flow_to_rgb(&flow, None), Durability::Derived)?;
+    }
+    Ok(())
+}
+
+/// Both images of `args`, each pixel mapped through `pixel` as it is decoded
+/// ([`read_png_as_rgb8_mapped`]); the second decodes on a worker when there is one.
+///
+/// # Errors
+/// Either image cannot be read, or the two differ in size.
+fn read_pair<T: Send>(
+    args: &FlowArgs,
+    pixel: impl Fn(&[u8; 3]) -> T + Sync,
+) -> anyhow::Result<(Image<T>, Image<T>)> {
     let (first, second) = rayon::join(
-        || read_png_as_rgb8(&args.first),
-        || read_png_as_rgb8(&args.second),
+        || read_png_as_rgb8_mapped(&args.first, &pixel),
+        || read_png_as_rgb8_mapped(&args.second, &pixel),
     );
     let (first, second) = (first?, second?);
-    if (first.width(), first.height()) != (second.width(), second.height()) {
+    if first.size() != second.size() {
         bail!(
             "{} is {}x{} but {} is {}x{}: the images must have one size",
             args.first.display(),
@@ -115,20 +153,5 @@ pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
             second.height()
         );
     }
-    let estimator = args.flow.flow(|| DisFlow::new(params))?;
-    let flow = estimator
-        .estimate(first.view(), second.view())
-        .with_context(|| {
-            format!(
-                "flow from {} to {}",
-                args.first.display(),
-                args.second.display()
-            )
-        })?;
-    // Derived outputs: atomic, not flushed to disk (`Durability`'s contract).
-    write_flo_as(&args.output, &flow, Durability::Derived)?;
-    if let Some(viz) = &args.viz {
-        write_rgb8_as(viz, &flow_to_rgb(&flow, None), Durability::Derived)?;
-    }
-    Ok(())
+    Ok((first, second))
 }

@@ -385,8 +385,12 @@ impl DisFlow {
                 patch_px: p,
             });
         }
+        // Without an early exit the scan vectorises (a one-shot `riseg flow`, which passes
+        // luma: 4.3 M instructions with one, 0.5 M without).
         if let Base::Gray(images) = base
-            && !images.iter().flat_map(|i| i.iter()).all(|v| v.is_finite())
+            && !images
+                .iter()
+                .all(|i| i.iter().fold(true, |finite, v| finite & v.is_finite()))
         {
             return Err(FlowError::NonFinite);
         }

@@ -24,7 +24,8 @@
 
 use std::{
     borrow::Cow,
-    io::{self, Cursor, Write as _},
+    fs::File,
+    io::{self, BufReader, Cursor, Write as _},
     path::{Path, PathBuf},
 };
 
@@ -305,6 +306,10 @@ fn png_size(path: &Path, bytes: &[u8]) -> Result<(usize, usize), ImageIoError> {
     Ok((width as usize, height as usize))
 }
 
+/// The most bytes a PNG decoder may allocate: a [`MAX_IMAGE_PIXELS`] image of 16-bit RGBA,
+/// the widest PNG pixel, plus room for the decoder's own rows.
+const MAX_DECODER_BYTES: usize = 2 * MAX_IMAGE_PIXELS * 8;
+
 /// What [`decode_png`] found: an 8-bit RGB PNG decoded straight into its pixel buffer, or
 /// any other PNG decoded for conversion.
 enum Decoded {
@@ -351,8 +356,7 @@ fn decode_png(files: &impl Files, path: &Path) -> Result<Decoded, ImageIoError> 
     let corrupt = |e| ImageIoError::new(path, ImageProblem::CorruptPng(e));
     let mut decoder = PngDecoder::new(Cursor::new(&*bytes)).map_err(corrupt)?;
     let mut limits = image::Limits::default();
-    // 16-bit RGBA, the widest PNG pixel, plus room for the decoder's own rows.
-    limits.max_alloc = Some(2 * (MAX_IMAGE_PIXELS as u64) * 8);
+    limits.max_alloc = Some(MAX_DECODER_BYTES as u64);
     decoder.set_limits(limits).map_err(corrupt)?;
     if decoder.color_type() == image::ColorType::Rgb8 {
         let mut data = vec![[0u8; 3]; width * height];
@@ -464,7 +468,75 @@ pub fn read_rgb8_in(files: &impl Files, path: &Path) -> Result<RgbImage, ImageIo
 /// # Errors
 /// Missing file, I/O error, or corrupt PNG.
 pub fn read_png_as_rgb8(path: &Path) -> Result<RgbImage, ImageIoError> {
-    decode_png(&DiskFiles, path)?.into_rgb8(path)
+    read_png_as_rgb8_mapped(path, |&rgb| rgb)
+}
+
+/// [`read_png_as_rgb8`] with every pixel mapped through `pixel` (`riseg flow` keeps only
+/// the luma), without holding the whole RGB image: a non-interlaced 8-bit RGB PNG, what
+/// cameras and `riseg gen` write, is decoded from the file one row at a time, so neither
+/// the file's bytes nor its RGB pixels are ever held whole (in a one-shot `riseg flow` on a
+/// 640x480 pair, 680 fewer fresh pages to fault in). Any other PNG is decoded whole and
+/// converted as [`read_png_as_rgb8`] says.
+///
+/// # Errors
+/// As [`read_png_as_rgb8`].
+pub fn read_png_as_rgb8_mapped<T>(
+    path: &Path,
+    mut pixel: impl FnMut(&[u8; 3]) -> T,
+) -> Result<Image<T>, ImageIoError> {
+    let corrupt = |e| ImageIoError::new(path, ImageProblem::CorruptPng(png_error(e)));
+    let file = File::open(path).map_err(|e| ImageIoError::io(path, e))?;
+    let mut decoder = png::Decoder::new_with_limits(
+        BufReader::new(file),
+        png::Limits {
+            bytes: MAX_DECODER_BYTES,
+        },
+    );
+    // The output colour types `image`'s decoder gives (`decode_png`'s path).
+    decoder.set_transformations(png::Transformations::EXPAND);
+    let mut reader = decoder.read_info().map_err(corrupt)?;
+    let (png_width, png_height, interlaced) = {
+        let info = reader.info();
+        (info.width, info.height, info.interlaced)
+    };
+    let (width, height) = (png_width as usize, png_height as usize);
+    if width.saturating_mul(height) > MAX_IMAGE_PIXELS {
+        return Err(ImageIoError::new(
+            path,
+            ImageProblem::TooManyPixels { width, height },
+        ));
+    }
+    if interlaced || reader.output_color_type() != (png::ColorType::Rgb, png::BitDepth::Eight) {
+        return Ok(decode_png(&DiskFiles, path)?.into_rgb8(path)?.map(pixel));
+    }
+    let mut data = Vec::with_capacity(width * height);
+    // The last call also reads the rest of the image data, as a whole-image decode does.
+    while let Some(row) = reader.next_row().map_err(corrupt)? {
+        data.extend(row.data().as_chunks::<3>().0.iter().map(&mut pixel));
+    }
+    from_decoded(path, png_width, png_height, data)
+}
+
+/// A `png` crate error as the `image` crate reports it (its own conversion is private), so
+/// that both decoding paths describe a corrupt file alike.
+fn png_error(e: png::DecodingError) -> image::ImageError {
+    use image::error::{
+        DecodingError, ImageFormatHint, LimitError, LimitErrorKind, ParameterError,
+        ParameterErrorKind,
+    };
+    match e {
+        png::DecodingError::IoError(e) => image::ImageError::IoError(e),
+        e @ png::DecodingError::Format(_) => image::ImageError::Decoding(DecodingError::new(
+            ImageFormatHint::Exact(image::ImageFormat::Png),
+            e,
+        )),
+        e @ png::DecodingError::Parameter(_) => image::ImageError::Parameter(
+            ParameterError::from_kind(ParameterErrorKind::Generic(e.to_string())),
+        ),
+        png::DecodingError::LimitsExceeded => {
+            image::ImageError::Limits(LimitError::from_kind(LimitErrorKind::InsufficientMemory))
+        }
+    }
 }
 
 /// Reads a 16-bit greyscale PNG (depth, labels). Any other bit depth is an error, so an
@@ -1044,6 +1116,45 @@ mod tests {
         );
         let e = read_png_as_rgb8(&dir.join("missing.png")).unwrap_err();
         assert!(matches!(e.problem, ImageProblem::Missing));
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The row-by-row path of `read_png_as_rgb8_mapped` (8-bit RGB) gives what decoding
+    /// the whole image gives, and reports a damaged or cut file as corrupt, naming it.
+    #[test]
+    fn mapped_reads_match_whole_decodes_and_report_damage() {
+        let dir = temp_dir("mapped");
+        let rgb = RgbImage::from_fn(37, 23, |x, y| {
+            [(x * 7) as u8, (y * 11) as u8, (x * y) as u8]
+        });
+        let path = dir.join("c.png");
+        write_rgb8(&path, &rgb).unwrap();
+        let weigh =
+            |p: &[u8; 3]| u32::from(p[0]) + 300 * u32::from(p[1]) + 90_000 * u32::from(p[2]);
+        assert_eq!(
+            read_png_as_rgb8_mapped(&path, weigh).unwrap(),
+            rgb.map(weigh)
+        );
+        let grey = Gray8Image::from_fn(5, 4, |x, y| (40 * x + y) as u8);
+        write_gray8(&dir.join("g.png"), &grey).unwrap();
+        assert_eq!(
+            read_png_as_rgb8_mapped(&dir.join("g.png"), weigh).unwrap(),
+            grey.map(|&v| weigh(&[v; 3]))
+        );
+        let bytes = fs::read(&path).unwrap();
+        let mut flipped = bytes.clone();
+        flipped[bytes.len() / 2] ^= 0x5a;
+        let cut = &bytes[..bytes.len() / 2];
+        for (name, damaged) in [("flipped.png", &flipped[..]), ("cut.png", cut)] {
+            let bad = dir.join(name);
+            fs::write(&bad, damaged).unwrap();
+            let e = read_png_as_rgb8_mapped(&bad, weigh).unwrap_err();
+            assert!(
+                matches!(e.problem, ImageProblem::CorruptPng(_)),
+                "{name}: {e}"
+            );
+            assert!(e.to_string().contains(name), "{e}");
+        }
         fs::remove_dir_all(&dir).unwrap();
     }
 

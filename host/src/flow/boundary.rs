@@ -199,7 +199,9 @@ impl Window {
         // Row k of the block, interpolated along x at the three sample columns.
         let across = |k: usize| {
             let at = (top + k) * w + left;
-            let five = i1.get(at..at + 5).and_then(|c| <[f32; 5]>::try_from(c).ok());
+            let five = i1
+                .get(at..at + 5)
+                .and_then(|c| <[f32; 5]>::try_from(c).ok());
             let [a0, a1, a2, a3, a4] = five.unwrap_or_default();
             let (a, b) = (f32x4::new([a0, a1, a2, a3]), f32x4::new([a1, a2, a3, a4]));
             a + ax * (b - a)

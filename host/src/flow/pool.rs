@@ -108,8 +108,14 @@ impl<T: Copy + Default> Pool<T> {
         best.map(|i| free.swap_remove(i))
     }
 
-    /// Gives a buffer back for later calls.
+    /// Gives a buffer back for later calls. One without room (an empty `Vec::new()`, as a
+    /// run's flow before its coarsest level) is dropped: it could serve no request, and
+    /// one kept per call filled the [`KEEP`] places within a few dozen calls, after which
+    /// every buffer given back was dropped and made anew.
     pub fn put(&self, v: Vec<T>) {
+        if v.capacity() == 0 {
+            return;
+        }
         let mut free = self.free.lock().unwrap_or_else(PoisonError::into_inner);
         if free.len() < KEEP {
             free.push(v);
@@ -142,6 +148,18 @@ mod tests {
         assert_eq!((e.as_slice(), e.capacity()), (&[1.0, 2.0, 3.0][..], cap));
         let f = pool.copy_of(&[4.0; 7]);
         assert_eq!(f, vec![4.0; 7]);
+    }
+
+    #[test]
+    fn buffers_without_room_are_not_kept() {
+        let pool: Pool = Pool::default();
+        for _ in 0..2 * KEEP {
+            pool.put(Vec::new());
+        }
+        pool.put(pool.zeroed(10));
+        let free = pool.free.lock().unwrap_or_else(PoisonError::into_inner);
+        let rooms: Vec<usize> = free.iter().map(Vec::capacity).collect();
+        assert_eq!(rooms, [10], "only the buffer with room is kept");
     }
 
     #[test]

@@ -49,7 +49,8 @@ pub(crate) fn select_at_boundaries(
         return;
     }
     for _ in 0..passes {
-        let mut out = flows.scratch(flow.len());
+        // Each row writes only the pixels that change.
+        let mut out = flows.copy_of(flow);
         let src = &flow[..];
         out.par_chunks_mut(w)
             .enumerate()
@@ -61,7 +62,7 @@ pub(crate) fn select_at_boundaries(
 /// Pixels per block of [`select_row`]'s spread test.
 const BLOCK: usize = 64;
 
-/// Row `y` of one pass over `src` into `out`.
+/// Row `y` of one pass over `src` into `out` (which holds a copy of the row).
 fn select_row(images: Pair<'_>, src: &[[f32; 2]], y: usize, reach_px: usize, out: &mut [[f32; 2]]) {
     let (w, h) = (images.w, images.h);
     let row = |r: usize| &src[r * w..][..w];
@@ -70,7 +71,6 @@ fn select_row(images: Pair<'_>, src: &[[f32; 2]], y: usize, reach_px: usize, out
         row(y.saturating_sub(reach_px)),
         row(y.saturating_add(reach_px).min(h - 1)),
     );
-    out.copy_from_slice(here);
     let left = |x: usize| here[x.saturating_sub(reach_px)];
     let right = |x: usize| here[x.saturating_add(reach_px).min(w - 1)];
     let gap = |f: [f32; 2], g: [f32; 2]| larger((g[0] - f[0]).abs(), (g[1] - f[1]).abs());
@@ -80,11 +80,11 @@ fn select_row(images: Pair<'_>, src: &[[f32; 2]], y: usize, reach_px: usize, out
         below.as_flattened(),
     );
     let r2 = reach_px.saturating_mul(2);
+    let mut spread = [0.0f32; 2 * BLOCK];
     for start in (0..w).step_by(BLOCK) {
         let n = BLOCK.min(w - start);
         // The largest component difference to the four candidates, a block at a time: a
         // flat loop over both components that vectorises (few pixels pass the test).
-        let mut spread = [0.0f32; 2 * BLOCK];
         let (i, m) = (2 * start, 2 * n);
         for (((s, &f), &a), &b) in spread[..m]
             .iter_mut()
@@ -112,67 +112,117 @@ fn select_row(images: Pair<'_>, src: &[[f32; 2]], y: usize, reach_px: usize, out
             let (x, f) = (start + k, here[start + k]);
             spread[2 * k] = larger(spread[2 * k], larger(gap(f, left(x)), gap(f, right(x))));
         }
-        for (k, s) in spread[..m].chunks_exact(2).enumerate() {
-            if larger(s[0], s[1]) <= SPREAD_PX {
+        // Groups of `GROUP` pixels none of which passes are skipped at once.
+        for (j, group) in spread[..m].chunks(2 * GROUP).enumerate() {
+            if all_small(group) {
                 continue;
             }
-            let x = start + k;
-            let own = here[x];
-            let mut best_cost = window_sad(images, x, y, own);
-            for g in [left(x), right(x), above[x], below[x]] {
-                if gap(own, g) <= SPREAD_PX {
+            for (k, s) in group.chunks_exact(2).enumerate() {
+                if larger(s[0], s[1]) <= SPREAD_PX {
                     continue;
                 }
-                let cost = window_sad(images, x, y, g);
-                if cost < best_cost {
-                    (out[x], best_cost) = (g, cost);
+                let x = start + j * GROUP + k;
+                let own = here[x];
+                let window = Window::new(images, x, y);
+                let mut best_cost = window.sad(images, own);
+                for g in [left(x), right(x), above[x], below[x]] {
+                    if gap(own, g) <= SPREAD_PX {
+                        continue;
+                    }
+                    let cost = window.sad(images, g);
+                    if cost < best_cost {
+                        (out[x], best_cost) = (g, cost);
+                    }
                 }
             }
         }
     }
 }
 
-/// Sum over the 3x3 window around `(x, y)` (cut at the border) of `|I1(p + g) - I0(p)|`.
-fn window_sad(images: Pair<'_>, x: usize, y: usize, g: [f32; 2]) -> f32 {
-    let (w, h, i0, i1) = (images.w, images.h, images.i0, images.i1);
-    let (gx, gy) = (floor(g[0]), floor(g[1]));
-    // The 4x5 block of I1 the window's samples read (and one column more, as the fourth
-    // lane), when it and the window (with one column more) lie inside: one set of
-    // bilinear weights for all nine samples, three lanes of four in use.
-    let (left, top) = (x as f32 - 1.0 + gx, y as f32 - 1.0 + gy);
-    let inside = x >= 1
-        && y >= 1
-        && x + 2 < w
-        && y + 1 < h
-        && left >= 0.0
-        && top >= 0.0
-        && left + 4.0 < w as f32
-        && top + 3.0 < h as f32;
-    if !inside {
-        return window_sad_clamped(images, x, y, g);
+/// Pixels per group of [`select_row`]'s skip: eight components, two vector compares.
+const GROUP: usize = 4;
+
+/// Whether no value of `group` (`2 * GROUP` values but at a row's end) is above
+/// [`SPREAD_PX`] or NaN.
+fn all_small(group: &[f32]) -> bool {
+    match <&[f32; 2 * GROUP]>::try_from(group) {
+        Ok(&[a, b, c, d, e, f, g, h]) => {
+            let limit = f32x4::splat(SPREAD_PX);
+            let (lo, hi) = (f32x4::new([a, b, c, d]), f32x4::new([e, f, g, h]));
+            (lo.simd_le(limit) & hi.simd_le(limit)).all()
+        }
+        Err(_) => group.iter().all(|&s| s <= SPREAD_PX),
     }
-    let (ax, ay) = (f32x4::splat(g[0] - gx), f32x4::splat(g[1] - gy));
-    let (left, top) = (left as usize, top as usize);
-    let lanes = |s: &[f32], at: usize| {
-        let four = s.get(at..at + 4).and_then(|c| <[f32; 4]>::try_from(c).ok());
-        f32x4::new(four.unwrap_or_default())
-    };
-    // Row k of the block, interpolated along x at the three sample columns.
-    let across = |k: usize| {
-        let at = (top + k) * w + left;
-        let (a, b) = (lanes(i1, at), lanes(i1, at + 1));
-        a + ax * (b - a)
-    };
-    let mut upper = across(0);
-    let mut sum = f32x4::ZERO;
-    for k in 0..3 {
-        let lower = across(k + 1);
-        let sample = upper + ay * (lower - upper);
-        sum += (sample - lanes(i0, (y - 1 + k) * w + x - 1)).abs();
-        upper = lower;
+}
+
+/// The 3x3 window around a pixel `(x, y)` that [`Window::sad`] compares under each
+/// candidate flow, with its rows of `I0` read once for all of them.
+struct Window {
+    x: usize,
+    y: usize,
+    /// `I0`'s three rows of the window, each with one column more as the fourth lane, when
+    /// they lie inside the image (`None`: the clamped sum, [`window_sad_clamped`]).
+    i0: Option<[f32x4; 3]>,
+}
+
+impl Window {
+    fn new(images: Pair<'_>, x: usize, y: usize) -> Self {
+        let (w, h) = (images.w, images.h);
+        let i0 = if x >= 1 && y >= 1 && x + 2 < w && y + 1 < h {
+            let row = |k: usize| lanes(images.i0, (y - 1 + k) * w + x - 1);
+            Some([row(0), row(1), row(2)])
+        } else {
+            None
+        };
+        Self { x, y, i0 }
     }
-    let [a, b, c, _] = sum.to_array();
-    a + b + c
+
+    /// Sum over the window (cut at the border) of `|I1(p + g) - I0(p)|`.
+    fn sad(&self, images: Pair<'_>, g: [f32; 2]) -> f32 {
+        let (w, h, i1) = (images.w, images.h, images.i1);
+        let (gx, gy) = (floor(g[0]), floor(g[1]));
+        // The 4x5 block of I1 the window's samples read (and one column more, as the
+        // fourth lane), when it and the window lie inside: one set of bilinear weights for
+        // all nine samples, three lanes of four in use. `gx` and `gy` are whole numbers of
+        // magnitude at most 2^31, so the block's corner is exact in i64.
+        let corner = |c: usize, g: f32, extent: usize, size: usize| {
+            usize::try_from(c as i64 - 1 + g as i64)
+                .ok()
+                .filter(|&at| at + extent < size)
+        };
+        let (Some(i0), Some(left), Some(top)) =
+            (self.i0, corner(self.x, gx, 4, w), corner(self.y, gy, 3, h))
+        else {
+            return window_sad_clamped(images, self.x, self.y, g);
+        };
+        let (ax, ay) = (f32x4::splat(g[0] - gx), f32x4::splat(g[1] - gy));
+        // Row k of the block, interpolated along x at the three sample columns.
+        let across = |k: usize| {
+            let at = (top + k) * w + left;
+            let five = i1
+                .get(at..at + 5)
+                .and_then(|c| <[f32; 5]>::try_from(c).ok());
+            let [a0, a1, a2, a3, a4] = five.unwrap_or_default();
+            let (a, b) = (f32x4::new([a0, a1, a2, a3]), f32x4::new([a1, a2, a3, a4]));
+            a + ax * (b - a)
+        };
+        let mut upper = across(0);
+        let mut sum = f32x4::ZERO;
+        for (k, row) in i0.into_iter().enumerate() {
+            let lower = across(k + 1);
+            let sample = upper + ay * (lower - upper);
+            sum += (sample - row).abs();
+            upper = lower;
+        }
+        let [a, b, c, _] = sum.to_array();
+        a + b + c
+    }
+}
+
+/// The four values of `s` from `at` (zeros if they lie outside).
+fn lanes(s: &[f32], at: usize) -> f32x4 {
+    let four = s.get(at..at + 4).and_then(|c| <[f32; 4]>::try_from(c).ok());
+    f32x4::new(four.unwrap_or_default())
 }
 
 /// The larger of `a` and `b` (`b` if either is NaN): unlike `f32::max`, one vector
@@ -188,7 +238,7 @@ fn floor(v: f32) -> f32 {
     if t > v { t - 1.0 } else { t }
 }
 
-/// [`window_sad`] near the border: each sample's position clamped to the image.
+/// [`Window::sad`] near the border: each sample's position clamped to the image.
 fn window_sad_clamped(images: Pair<'_>, x: usize, y: usize, g: [f32; 2]) -> f32 {
     let (w, h) = (images.w, images.h);
     let mut sum = 0.0;

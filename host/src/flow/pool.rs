@@ -71,6 +71,23 @@ impl<T: Copy + Default> Pool<T> {
         }
     }
 
+    /// A buffer holding a copy of `values`, reusing a kept buffer with room if there is one:
+    /// one pass over the memory where [`Pool::scratch`] and a copy may take two.
+    pub fn copy_of(&self, values: &[T]) -> Vec<T> {
+        match self.take(values.len()) {
+            Some(mut v) => {
+                v.clear();
+                v.extend_from_slice(values);
+                v
+            }
+            None => {
+                let mut v = self.fresh(0);
+                v.extend_from_slice(values);
+                v
+            }
+        }
+    }
+
     /// The kept buffer with room for `len` values that [`Pool::scratch`] fills least: the
     /// shortest already holding `len` values (nothing to fill; call after call, each
     /// buffer keeps one role), else the longest. `None` if no buffer has room.
@@ -91,8 +108,14 @@ impl<T: Copy + Default> Pool<T> {
         best.map(|i| free.swap_remove(i))
     }
 
-    /// Gives a buffer back for later calls.
+    /// Gives a buffer back for later calls. One without room (an empty `Vec::new()`, as a
+    /// run's flow before its coarsest level) is dropped: it could serve no request, and
+    /// one kept per call filled the [`KEEP`] places within a few dozen calls, after which
+    /// every buffer given back was dropped and made anew.
     pub fn put(&self, v: Vec<T>) {
+        if v.capacity() == 0 {
+            return;
+        }
         let mut free = self.free.lock().unwrap_or_else(PoisonError::into_inner);
         if free.len() < KEEP {
             free.push(v);
@@ -120,6 +143,23 @@ mod tests {
         assert_eq!((d.len(), d.capacity()), (80, cap));
         let c = pool.zeroed(1000);
         assert_eq!(c.len(), 1000);
+        pool.put(d);
+        let e = pool.copy_of(&[1.0, 2.0, 3.0]);
+        assert_eq!((e.as_slice(), e.capacity()), (&[1.0, 2.0, 3.0][..], cap));
+        let f = pool.copy_of(&[4.0; 7]);
+        assert_eq!(f, vec![4.0; 7]);
+    }
+
+    #[test]
+    fn buffers_without_room_are_not_kept() {
+        let pool: Pool = Pool::default();
+        for _ in 0..2 * KEEP {
+            pool.put(Vec::new());
+        }
+        pool.put(pool.zeroed(10));
+        let free = pool.free.lock().unwrap_or_else(PoisonError::into_inner);
+        let rooms: Vec<usize> = free.iter().map(Vec::capacity).collect();
+        assert_eq!(rooms, [10], "only the buffer with room is kept");
     }
 
     #[test]

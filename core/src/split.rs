@@ -47,9 +47,9 @@ pub const MAX_ROUNDS: usize = 8;
 /// CorrectMask asks of a group in a segment).
 pub const MIN_PART_FRAMES_PER_GROUP: u32 = 3;
 /// How far a fitted motion must move a group's points (their centroid) for the group to
-/// count as moving, metres: the motion ceiling's floor (`riseg bench`), below which two
-/// motions count as one. A part's fit rests on hundreds of points, so its noise is a
-/// small share of this even with the depth noise of a D415 (about 1 mm per point).
+/// count as moving, metres: the motion ceiling's floor (`riseg bench`). A group's fit
+/// rests on hundreds of points, so its noise is a small share of this even with the depth
+/// noise of a D415 (about 1 mm per point).
 pub const MIN_MOTION_GAP_M: Real = 0.001;
 /// Smallest distance the two parts' motions put between one point (either part's
 /// centroid) for a split to stand, metres: half the ceiling's floor

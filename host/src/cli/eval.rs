@@ -571,9 +571,10 @@ ground truth with two touching objects (at most 2 background pixels apart along 
 column) merged when every static segmentation of frames 0..t (the built-in segmenter's,
 as `riseg run` uses) put them in one segment (the segment covering most of each object)
 and every push so far moved them alike (true rigid motions within 1 mm at either
-object's centre and 1.5 degrees; --ceiling-floor-mm sets another floor); merges chain through touching neighbours, most alike
-first, but a group never holds two objects that a push moved differently. Below it, per
-push: prediction / ceiling, the ratio of the objects-found columns. A malformed
+object's centre and 1.5 degrees; --ceiling-floor-mm sets another floor); merges chain
+through touching neighbours, most alike first, but a group never holds two objects that
+a push moved differently. Below it, per push: prediction / ceiling, the ratio of the
+objects-found columns. A malformed
 poses.json stops the run with an error naming it; without poses.json in every scene the
 ceiling is skipped with a note on stderr.
 

@@ -87,9 +87,7 @@ impl CeilingParams {
         rot_floor_rad: 1.5_f32.to_radians(),
         touch_gap_px: 2,
     };
-}
 
-impl CeilingParams {
     /// [`Self::DEFAULT`] with the translation floor `trans_floor_m` and the rotation floor
     /// scaled with it (so it stays the translation floor at an object's rim), e.g. a
     /// stricter yardstick for a method that resolves motions finer than 1 mm.

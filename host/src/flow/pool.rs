@@ -109,9 +109,9 @@ impl<T: Copy + Default> Pool<T> {
     }
 
     /// Gives a buffer back for later calls. One without room (an empty `Vec::new()`, as a
-    /// run's flow before its coarsest level) is dropped: it could serve no request, and
-    /// one kept per call filled the [`KEEP`] places within a few dozen calls, after which
-    /// every buffer given back was dropped and made anew.
+    /// run's flow before its coarsest level) is dropped: any request it could serve needs
+    /// no allocation, and one kept per call filled the [`KEEP`] places within a few dozen
+    /// calls, after which every buffer given back was dropped and made anew.
     pub fn put(&self, v: Vec<T>) {
         if v.capacity() == 0 {
             return;

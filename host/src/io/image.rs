@@ -341,18 +341,24 @@ impl Decoded {
     }
 }
 
-/// Decodes `path` from `files` after checking the declared size against
-/// [`MAX_IMAGE_PIXELS`] (the decoder's allocation is capped to match). An 8-bit RGB PNG is
-/// decoded straight into the [`RgbImage`] buffer (no second copy).
-fn decode_png(files: &impl Files, path: &Path) -> Result<Decoded, ImageIoError> {
-    let bytes = read_bytes(files, path)?;
-    let (width, height) = png_size(path, &bytes)?;
+/// `TooManyPixels` when a declared `width x height` exceeds [`MAX_IMAGE_PIXELS`].
+fn check_pixel_count(path: &Path, width: usize, height: usize) -> Result<(), ImageIoError> {
     if width.saturating_mul(height) > MAX_IMAGE_PIXELS {
         return Err(ImageIoError::new(
             path,
             ImageProblem::TooManyPixels { width, height },
         ));
     }
+    Ok(())
+}
+
+/// Decodes `path` from `files` after checking the declared size against
+/// [`MAX_IMAGE_PIXELS`] (the decoder's allocation is capped to match). An 8-bit RGB PNG is
+/// decoded straight into the [`RgbImage`] buffer (no second copy).
+fn decode_png(files: &impl Files, path: &Path) -> Result<Decoded, ImageIoError> {
+    let bytes = read_bytes(files, path)?;
+    let (width, height) = png_size(path, &bytes)?;
+    check_pixel_count(path, width, height)?;
     let corrupt = |e| ImageIoError::new(path, ImageProblem::CorruptPng(e));
     let mut decoder = PngDecoder::new(Cursor::new(&*bytes)).map_err(corrupt)?;
     let mut limits = image::Limits::default();
@@ -472,11 +478,11 @@ pub fn read_png_as_rgb8(path: &Path) -> Result<RgbImage, ImageIoError> {
 }
 
 /// [`read_png_as_rgb8`] with every pixel mapped through `pixel` (`riseg flow` keeps only
-/// the luma), without holding the whole RGB image: a non-interlaced 8-bit RGB PNG, what
-/// cameras and `riseg gen` write, is decoded from the file one row at a time, so neither
-/// the file's bytes nor its RGB pixels are ever held whole (in a one-shot `riseg flow` on a
-/// 640x480 pair, 680 fewer fresh pages to fault in). Any other PNG is decoded whole and
-/// converted as [`read_png_as_rgb8`] says.
+/// the luma), without holding the whole RGB image: a non-interlaced PNG that decodes to
+/// 8-bit RGB, what cameras and `riseg gen` write, is decoded from the file one row at a
+/// time, so neither the file's bytes nor its RGB pixels are ever held whole (in a
+/// one-shot `riseg flow` on a 640x480 pair, about 650 fewer fresh pages to fault in). Any
+/// other PNG is decoded whole and converted as [`read_png_as_rgb8`] says.
 ///
 /// # Errors
 /// As [`read_png_as_rgb8`].
@@ -484,7 +490,13 @@ pub fn read_png_as_rgb8_mapped<T>(
     path: &Path,
     mut pixel: impl FnMut(&[u8; 3]) -> T,
 ) -> Result<Image<T>, ImageIoError> {
-    let corrupt = |e| ImageIoError::new(path, ImageProblem::CorruptPng(png_error(e)));
+    // A file cut short is corrupt; any other failure to read it is an I/O error.
+    let failed = |e| match e {
+        png::DecodingError::IoError(e) if e.kind() != std::io::ErrorKind::UnexpectedEof => {
+            ImageIoError::io(path, e)
+        }
+        e => ImageIoError::new(path, ImageProblem::CorruptPng(png_error(e))),
+    };
     let file = File::open(path).map_err(|e| ImageIoError::io(path, e))?;
     let mut decoder = png::Decoder::new_with_limits(
         BufReader::new(file),
@@ -494,24 +506,21 @@ pub fn read_png_as_rgb8_mapped<T>(
     );
     // The output colour types `image`'s decoder gives (`decode_png`'s path).
     decoder.set_transformations(png::Transformations::EXPAND);
-    let mut reader = decoder.read_info().map_err(corrupt)?;
-    let (png_width, png_height, interlaced) = {
-        let info = reader.info();
-        (info.width, info.height, info.interlaced)
+    // The declared size first: `read_info` already reserves a row against the limit.
+    let (png_width, png_height) = {
+        let info = decoder.read_header_info().map_err(failed)?;
+        (info.width, info.height)
     };
     let (width, height) = (png_width as usize, png_height as usize);
-    if width.saturating_mul(height) > MAX_IMAGE_PIXELS {
-        return Err(ImageIoError::new(
-            path,
-            ImageProblem::TooManyPixels { width, height },
-        ));
-    }
+    check_pixel_count(path, width, height)?;
+    let mut reader = decoder.read_info().map_err(failed)?;
+    let interlaced = reader.info().interlaced;
     if interlaced || reader.output_color_type() != (png::ColorType::Rgb, png::BitDepth::Eight) {
         return Ok(decode_png(&DiskFiles, path)?.into_rgb8(path)?.map(pixel));
     }
     let mut data = Vec::with_capacity(width * height);
     // The last call also reads the rest of the image data, as a whole-image decode does.
-    while let Some(row) = reader.next_row().map_err(corrupt)? {
+    while let Some(row) = reader.next_row().map_err(failed)? {
         data.extend(row.data().as_chunks::<3>().0.iter().map(&mut pixel));
     }
     from_decoded(path, png_width, png_height, data)
@@ -1154,6 +1163,23 @@ mod tests {
                 "{name}: {e}"
             );
             assert!(e.to_string().contains(name), "{e}");
+        }
+        // A folder opens but cannot be read: an I/O error, not a corrupt file.
+        let folder = dir.join("folder.png");
+        fs::create_dir(&folder).unwrap();
+        let e = read_png_as_rgb8_mapped(&folder, weigh).unwrap_err();
+        assert!(matches!(e.problem, ImageProblem::Io(_)), "{e}");
+        assert!(e.to_string().contains("folder.png"), "{e}");
+        // A header declaring more pixels than any frame (one row wider than the decoder's
+        // memory limit, too): named as too large before any row is reserved.
+        for (w, h) in [(100_000, 100_000), (200_000_000, 1)] {
+            let huge = dir.join("huge.png");
+            fs::write(&huge, crate::testkit::png::png_declaring(w, h)).unwrap();
+            let e = read_png_as_rgb8_mapped(&huge, weigh).unwrap_err();
+            assert!(
+                matches!(e.problem, ImageProblem::TooManyPixels { .. }),
+                "{w}x{h}: {e}"
+            );
         }
         fs::remove_dir_all(&dir).unwrap();
     }

@@ -210,16 +210,26 @@ pub(crate) fn upsample_flow(
     }
     let s = scale as f32;
     let inv = 1.0 / s;
-    // Source column and weight of each destination column, computed once.
-    let cols: Vec<(usize, usize, f32)> = (0..dst_w)
-        .map(|x| {
-            let fx = ((x as f32 + 0.5) * inv - 0.5).clamp(0.0, (src_w - 1) as f32);
-            let x0 = fx as usize; // non-negative: truncation is floor
-            (x0, (x0 + 1).min(src_w - 1), fx - x0 as f32)
-        })
-        .collect();
+    // Source column and weight of destination column `x`.
+    let col = |x: usize| {
+        let fx = ((x as f32 + 0.5) * inv - 0.5).clamp(0.0, (src_w - 1) as f32);
+        let x0 = fx as usize; // non-negative: truncation is floor
+        (x0, (x0 + 1).min(src_w - 1), fx - x0 as f32)
+    };
+    let lerp =
+        |a: [f32; 2], b: [f32; 2], t: f32| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+    // The general path reads the columns from a table computed once. At scale 2 (between
+    // pyramid levels) destination columns `2j + 1` and `2j + 2` lie between source columns
+    // `j` and `j + 1` at weights exactly 0.25 and 0.75 (`col` gives the same, in binary
+    // fractions without rounding), so the interior is blended pairwise without the table;
+    // the edge columns, clamped, still go through `col`.
+    let cols: Vec<(usize, usize, f32)> = if scale == 2 {
+        Vec::new()
+    } else {
+        (0..dst_w).map(col).collect()
+    };
     // Per output row: blend the two source rows vertically (element-wise), then resample
-    // that row horizontally through the column table.
+    // that row horizontally.
     dst.par_chunks_mut(dst_w).enumerate().for_each_init(
         || vec![[0.0f32; 2]; src_w],
         |row, (y, out)| {
@@ -235,9 +245,21 @@ pub(crate) fn upsample_flow(
                     s * (a[1] + ay * (b[1] - a[1])),
                 ];
             }
-            for (o, &(x0, x1, ax)) in out.iter_mut().zip(&cols) {
-                let (a, b) = (row[x0], row[x1]);
-                *o = [a[0] + ax * (b[0] - a[0]), a[1] + ax * (b[1] - a[1])];
+            if scale == 2 {
+                let pairs = out[1..].chunks_exact_mut(2).zip(row.windows(2));
+                let interior = 2 * pairs.len();
+                for (o, ab) in pairs {
+                    o[0] = lerp(ab[0], ab[1], 0.25);
+                    o[1] = lerp(ab[0], ab[1], 0.75);
+                }
+                for x in core::iter::once(0).chain(1 + interior..dst_w) {
+                    let (x0, x1, ax) = col(x);
+                    out[x] = lerp(row[x0], row[x1], ax);
+                }
+            } else {
+                for (o, &(x0, x1, ax)) in out.iter_mut().zip(&cols) {
+                    *o = lerp(row[x0], row[x1], ax);
+                }
             }
         },
     );
@@ -283,5 +305,46 @@ mod tests {
         let src = vec![[1.0, -2.0]; 6];
         let dst = upsample_flow(&src, 3, 2, 6, 4, 2, &Pool::default());
         assert!(dst.iter().all(|v| *v == [2.0, -4.0]));
+    }
+
+    #[test]
+    fn upsampling_by_two_matches_the_column_formula_bit_for_bit() {
+        // The scale-2 path blends interior columns at fixed weights; every output must equal
+        // the general formula (source column and weight from the clamped position) exactly,
+        // also for odd and cropped destination widths.
+        for (src_w, src_h, dst_w, dst_h) in
+            [(5, 3, 10, 6), (5, 3, 11, 7), (4, 2, 5, 3), (1, 1, 3, 2)]
+        {
+            let src: Vec<[f32; 2]> = (0..src_w * src_h)
+                .map(|i| {
+                    [
+                        (i as f32 * 0.37).sin() * 3.1,
+                        -(i as f32 * 0.71).cos() * 1.7,
+                    ]
+                })
+                .collect();
+            let dst = upsample_flow(&src, src_w, src_h, dst_w, dst_h, 2, &Pool::default());
+            let at = |p: usize, n: usize| {
+                let f = ((p as f32 + 0.5) * 0.5 - 0.5).clamp(0.0, (n - 1) as f32);
+                let p0 = f as usize;
+                (p0, (p0 + 1).min(n - 1), f - p0 as f32)
+            };
+            for y in 0..dst_h {
+                let (y0, y1, ay) = at(y, src_h);
+                let row = |x: usize| {
+                    let (a, b) = (src[y0 * src_w + x], src[y1 * src_w + x]);
+                    [
+                        2.0 * (a[0] + ay * (b[0] - a[0])),
+                        2.0 * (a[1] + ay * (b[1] - a[1])),
+                    ]
+                };
+                for x in 0..dst_w {
+                    let (x0, x1, ax) = at(x, src_w);
+                    let (a, b) = (row(x0), row(x1));
+                    let want = [a[0] + ax * (b[0] - a[0]), a[1] + ax * (b[1] - a[1])];
+                    assert_eq!(dst[y * dst_w + x].map(f32::to_bits), want.map(f32::to_bits));
+                }
+            }
+        }
     }
 }

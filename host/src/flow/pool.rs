@@ -74,18 +74,10 @@ impl<T: Copy + Default> Pool<T> {
     /// A buffer holding a copy of `values`, reusing a kept buffer with room if there is one:
     /// one pass over the memory where [`Pool::scratch`] and a copy may take two.
     pub fn copy_of(&self, values: &[T]) -> Vec<T> {
-        match self.take(values.len()) {
-            Some(mut v) => {
-                v.clear();
-                v.extend_from_slice(values);
-                v
-            }
-            None => {
-                let mut v = self.fresh(0);
-                v.extend_from_slice(values);
-                v
-            }
-        }
+        let mut v = self.take(values.len()).unwrap_or_else(|| self.fresh(0));
+        v.clear();
+        v.extend_from_slice(values);
+        v
     }
 
     /// The kept buffer with room for `len` values that [`Pool::scratch`] fills least: the

@@ -92,6 +92,13 @@ fn a_lower_ceiling_floor_separates_motions_the_default_floor_joins() {
         );
         let report: EvalReport =
             serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        // The report says which floor it was scored at, in the file and the table.
+        let floor_m = report.ceiling_floor_m.expect("the ceiling's floor");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let heading = format!("motion ceiling at a {:.2} mm floor", floor_m * 1e3);
+        assert!(stdout.contains(&heading), "{heading:?} in {stdout}");
+        let want_mm: f32 = floor_mm.unwrap_or("1").parse().unwrap();
+        assert!((floor_m * 1e3 - want_mm).abs() < 1e-6, "{floor_m} m");
         report.ceiling.expect("a ceiling")[1].objects_f75_pct
     };
     assert_eq!(

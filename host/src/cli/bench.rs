@@ -168,9 +168,9 @@ pub struct SceneResult {
 pub type Timing = BTreeMap<String, f64>;
 
 /// The benchmark's result; its JSON form is `{"static": [ROW, ...], "riseg": [ROW, ...],
-/// "ceiling": [ROW, ...], "partial_push_share": [null, 0.25, ...], "timing_ms":
-/// {"segment": .., "flow": .., "frames": .., "twists": .., "grouping": .., "mask": ..}}`
-/// with ROW as in `riseg eval --json`.
+/// "ceiling": [ROW, ...], "ceiling_floor_m": 0.001, "partial_push_share": [null, 0.25, ...],
+/// "timing_ms": {"segment": .., "flow": .., "frames": .., "twists": .., "grouping": ..,
+/// "mask": ..}}` with ROW as in `riseg eval --json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BenchReport {
     /// The static segmenter alone, per push.
@@ -182,6 +182,10 @@ pub struct BenchReport {
     /// The motion ceiling, per push.
     #[serde(rename = "ceiling")]
     pub ceiling_rows: Vec<PushReport>,
+    /// The translation floor the ceiling was scored at, metres
+    /// ([`CeilingParams::trans_floor_m`]; reports without it were scored at the default).
+    #[serde(default = "default_ceiling_floor_m")]
+    pub ceiling_floor_m: f32,
     /// Per push index `t`, one entry per row: the fraction of the pushes `t` made (one per
     /// scene that reached frame `t`, the rows' `images`) that moved part of a merged
     /// segment (module docs); `None` (JSON `null`) for push 0, which no push led to.
@@ -442,12 +446,18 @@ pub fn run_bench_with(
             None => {}
         }
     }
-    Ok((report(&results), results))
+    Ok((report(&results, &cfg.ceiling), results))
 }
 
-/// Table 1 and the stage medians of finished scenes (module docs).
+/// The floor of reports written before they recorded it.
+fn default_ceiling_floor_m() -> f32 {
+    CeilingParams::DEFAULT.trans_floor_m
+}
+
+/// Table 1 and the stage medians of finished scenes (module docs), whose ceiling was
+/// scored with `ceiling`.
 #[must_use]
-pub fn report(results: &[SceneResult]) -> BenchReport {
+pub fn report(results: &[SceneResult], ceiling: &CeilingParams) -> BenchReport {
     let mut static_avg = PushAverages::new();
     let mut riseg_avg = PushAverages::new();
     let mut ceiling_avg = PushAverages::new();
@@ -496,6 +506,7 @@ pub fn report(results: &[SceneResult]) -> BenchReport {
         static_rows: EvalReport::from_rows(&static_avg.rows()).pushes,
         riseg_rows,
         ceiling_rows: EvalReport::from_rows(&ceiling_avg.rows()).pushes,
+        ceiling_floor_m: ceiling.trans_floor_m,
         partial_push_share,
         timing_ms,
     }
@@ -522,7 +533,11 @@ impl core::fmt::Display for BenchReport {
         writeln!(
             f,
             "{:>4} {:>6} | {:^26} | {:^26} | {:^26}",
-            "", "", "static segmenter", "RISeg", "motion ceiling"
+            "",
+            "",
+            "static segmenter",
+            "RISeg",
+            format!("motion ceiling at {:.2} mm", self.ceiling_floor_m * 1e3)
         )?;
         write!(f, "{:>4} {:>6}", "push", "scenes")?;
         for _ in 0..3 {
@@ -658,11 +673,15 @@ mod tests {
             times: Vec::new(),
             stop: Stop::NoAction,
         };
-        let report = report(&[
-            scene(3, vec![true, false]),
-            scene(2, vec![false]),
-            scene(3, vec![true, true]),
-        ]);
+        let floor = CeilingParams::with_floor_m(0.0005);
+        let report = report(
+            &[
+                scene(3, vec![true, false]),
+                scene(2, vec![false]),
+                scene(3, vec![true, true]),
+            ],
+            &floor,
+        );
         assert_eq!(
             report.partial_push_share,
             [None, Some(2.0 / 3.0), Some(0.5)]
@@ -679,6 +698,14 @@ mod tests {
         let json = serde_json::to_value(&report).unwrap();
         assert_eq!(json["partial_push_share"][0], serde_json::Value::Null);
         assert_eq!(json["partial_push_share"][2], 0.5);
+        // The floor the ceiling was scored at, in the table and the file.
+        assert!(table.contains("motion ceiling at 0.50 mm"), "{table}");
+        assert_eq!(json["ceiling_floor_m"], serde_json::json!(0.0005_f32));
+        // A report from before the floor was recorded reads as the default floor.
+        let mut old = json.clone();
+        old.as_object_mut().unwrap().remove("ceiling_floor_m");
+        let old: BenchReport = serde_json::from_value(old).unwrap();
+        assert_eq!(old.ceiling_floor_m, CeilingParams::DEFAULT.trans_floor_m);
     }
 }
 

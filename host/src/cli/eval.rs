@@ -325,7 +325,8 @@ impl From<&MetricsRow> for PushReport {
 /// The result of `riseg eval`: one [`PushReport`] per push index, in push order. Its
 /// JSON form is `{"pushes": [ROW, ...]}`, ROW = `{"push": 0, "images": 23, "overlap":
 /// {"p": .., "r": .., "f": ..}, "boundary": {..}, "objects_f75_pct": ..}`, with
-/// `"ceiling": [ROW, ...]` beside `"pushes"` when the motion ceiling was scored.
+/// `"ceiling": [ROW, ...]` and `"ceiling_floor_m": 0.001` beside `"pushes"` when the
+/// motion ceiling was scored.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EvalReport {
     /// One entry per push index.
@@ -333,6 +334,10 @@ pub struct EvalReport {
     /// The motion ceiling of the same frames (module docs), when it was scored.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ceiling: Option<Vec<PushReport>>,
+    /// The translation floor the ceiling was scored at, metres
+    /// ([`CeilingParams::trans_floor_m`]), when it was scored.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ceiling_floor_m: Option<f32>,
 }
 
 impl EvalReport {
@@ -342,6 +347,7 @@ impl EvalReport {
         Self {
             pushes: rows.iter().map(PushReport::from).collect(),
             ceiling: None,
+            ceiling_floor_m: None,
         }
     }
 
@@ -368,10 +374,14 @@ impl fmt::Display for EvalReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write_table(f, &self.pushes)?;
         if let Some(ceiling) = &self.ceiling {
+            write!(f, "\nmotion ceiling")?;
+            if let Some(floor_m) = self.ceiling_floor_m {
+                write!(f, " at a {:.2} mm floor", floor_m * 1e3)?;
+            }
             writeln!(
                 f,
-                "\nmotion ceiling (ground truth, objects merged where no static segmentation \
-                 or push could separate them):"
+                " (ground truth, objects merged where no static segmentation or push could \
+                 separate them):"
             )?;
             write_table(f, ceiling)?;
             write_ceiling_shares(f, "prediction", &self.pushes, ceiling)?;
@@ -644,6 +654,7 @@ Example:
                 let params = args.ceiling.params();
                 let rows = eval::evaluate_ceiling(scenes, &mut segmenter, &params, || bar.inc(1))?;
                 report.ceiling = Some(rows);
+                report.ceiling_floor_m = Some(params.trans_floor_m);
             }
             Ok(report)
         });

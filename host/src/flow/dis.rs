@@ -543,7 +543,6 @@ impl DisFlow {
                 &mut flow,
                 prm.boundary_passes,
                 prm.boundary_reach_px,
-                &self.flows,
             );
         }
         for plane in rgb_luma.into_iter().flatten() {

@@ -71,15 +71,6 @@ impl<T: Copy + Default> Pool<T> {
         }
     }
 
-    /// A buffer holding a copy of `values`, reusing a kept buffer with room if there is one:
-    /// one pass over the memory where [`Pool::scratch`] and a copy may take two.
-    pub fn copy_of(&self, values: &[T]) -> Vec<T> {
-        let mut v = self.take(values.len()).unwrap_or_else(|| self.fresh(0));
-        v.clear();
-        v.extend_from_slice(values);
-        v
-    }
-
     /// The kept buffer with room for `len` values that [`Pool::scratch`] fills least: the
     /// shortest already holding `len` values (nothing to fill; call after call, each
     /// buffer keeps one role), else the longest. `None` if no buffer has room.
@@ -135,11 +126,6 @@ mod tests {
         assert_eq!((d.len(), d.capacity()), (80, cap));
         let c = pool.zeroed(1000);
         assert_eq!(c.len(), 1000);
-        pool.put(d);
-        let e = pool.copy_of(&[1.0, 2.0, 3.0]);
-        assert_eq!((e.as_slice(), e.capacity()), (&[1.0, 2.0, 3.0][..], cap));
-        let f = pool.copy_of(&[4.0; 7]);
-        assert_eq!(f, vec![4.0; 7]);
     }
 
     #[test]

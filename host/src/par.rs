@@ -11,7 +11,7 @@ pub(crate) use serial::{ChunksMut, ForEachInit, ParSlice, ParSliceMut};
 #[cfg(not(feature = "threads"))]
 mod serial {
     pub(crate) use core::slice::ChunksMut;
-    use core::slice::{Chunks, Iter};
+    use core::slice::{Chunks, Iter, IterMut};
 
     /// rayon's `par_*` names for shared slices, run serially.
     pub(crate) trait ParSlice<T> {
@@ -19,9 +19,10 @@ mod serial {
         fn par_chunks(&self, n: usize) -> Chunks<'_, T>;
     }
 
-    /// rayon's `par_chunks_mut`, run serially.
+    /// rayon's `par_chunks_mut` and `par_iter_mut`, run serially.
     pub(crate) trait ParSliceMut<T> {
         fn par_chunks_mut(&mut self, n: usize) -> ChunksMut<'_, T>;
+        fn par_iter_mut(&mut self) -> IterMut<'_, T>;
     }
 
     impl<T> ParSlice<T> for [T] {
@@ -36,6 +37,9 @@ mod serial {
     impl<T> ParSliceMut<T> for [T] {
         fn par_chunks_mut(&mut self, n: usize) -> ChunksMut<'_, T> {
             self.chunks_mut(n)
+        }
+        fn par_iter_mut(&mut self) -> IterMut<'_, T> {
+            self.iter_mut()
         }
     }
 

@@ -12,12 +12,12 @@
 //! by more than [`SPREAD_PX`] in a component, the pixel takes whichever of the five flows
 //! has the lowest sum of absolute differences `|I1(y + g) - I0(y)|` over the 3x3 window
 //! around it (`I1` sampled bilinearly, clamped at the border; grey levels); `f` wins ties.
-//! Elsewhere `f` stays. Each pass reads the previous pass's flow and writes a new one row
-//! by row (each row its own task), so the result does not depend on the thread count.
+//! Elsewhere `f` stays. Each pass reads the previous pass's flow row by row (each row its
+//! own task) and lists the changes, written in once every row is done, so the result does
+//! not depend on the thread count.
 //!
 //! [`FlowParams::boundary_passes`]: super::FlowParams::boundary_passes
 
-use super::pool::Pool;
 use crate::par::*;
 use wide::f32x4;
 
@@ -35,35 +35,49 @@ pub(crate) struct Pair<'a> {
 }
 
 /// Runs `passes` passes of the selection over `flow` (`w x h`, row-major) with candidates
-/// `reach_px` pixels away; `flows` lends the output buffers.
+/// `reach_px` pixels away.
 pub(crate) fn select_at_boundaries(
     images: Pair<'_>,
-    flow: &mut Vec<[f32; 2]>,
+    flow: &mut [[f32; 2]],
     passes: usize,
     reach_px: usize,
-    flows: &Pool<[f32; 2]>,
 ) {
     let (w, h) = (images.w, images.h);
     let n = w * h;
     if n == 0 || flow.len() != n || images.i0.len() != n || images.i1.len() != n {
         return;
     }
+    // Few pixels change: each row lists its changes while every row reads the pass's
+    // input, then they are written in. No copy of the field (2.4 MB at 640x480: its pages
+    // faulted in by a one-shot `riseg flow`, and copied twice per estimate).
+    let mut changes: Vec<Vec<(usize, [f32; 2])>> = vec![Vec::new(); h];
     for _ in 0..passes {
-        // Each row writes only the pixels that change.
-        let mut out = flows.copy_of(flow);
-        let src = &flow[..];
-        out.par_chunks_mut(w)
-            .enumerate()
-            .for_each(|(y, row)| select_row(images, src, y, reach_px, row));
-        flows.put(core::mem::replace(flow, out));
+        let src = &*flow;
+        changes.par_iter_mut().enumerate().for_each(|(y, row)| {
+            row.clear();
+            select_row(images, src, y, reach_px, row);
+        });
+        for (y, row) in changes.iter().enumerate() {
+            for &(x, f) in row {
+                if let Some(v) = flow.get_mut(y * w + x) {
+                    *v = f;
+                }
+            }
+        }
     }
 }
 
 /// Pixels per block of [`select_row`]'s spread test.
 const BLOCK: usize = 64;
 
-/// Row `y` of one pass over `src` into `out` (which holds a copy of the row).
-fn select_row(images: Pair<'_>, src: &[[f32; 2]], y: usize, reach_px: usize, out: &mut [[f32; 2]]) {
+/// Row `y` of one pass over `src`: the pixels that change, as `(x, new flow)`, in `changes`.
+fn select_row(
+    images: Pair<'_>,
+    src: &[[f32; 2]],
+    y: usize,
+    reach_px: usize,
+    changes: &mut Vec<(usize, [f32; 2])>,
+) {
     let (w, h) = (images.w, images.h);
     let row = |r: usize| &src[r * w..][..w];
     let (here, above, below) = (
@@ -125,14 +139,20 @@ fn select_row(images: Pair<'_>, src: &[[f32; 2]], y: usize, reach_px: usize, out
                 let own = here[x];
                 let window = Window::new(images, x, y);
                 let mut best_cost = window.sad(images, own);
-                for g in [left(x), right(x), above[x], below[x]] {
+                // The winning candidate's index; past the end while `own` wins.
+                let candidates = [left(x), right(x), above[x], below[x]];
+                let mut best = candidates.len();
+                for (i, &g) in candidates.iter().enumerate() {
                     if gap(own, g) <= SPREAD_PX {
                         continue;
                     }
                     let cost = window.sad(images, g);
                     if cost < best_cost {
-                        (out[x], best_cost) = (g, cost);
+                        (best, best_cost) = (i, cost);
                     }
+                }
+                if let Some(&g) = candidates.get(best) {
+                    changes.push((x, g));
                 }
             }
         }
@@ -325,9 +345,8 @@ mod tests {
             }
             sum / n as f32
         };
-        let pool = Pool::default();
         let mut flow = ramp.clone();
-        select_at_boundaries(images, &mut flow, 2, 4, &pool);
+        select_at_boundaries(images, &mut flow, 2, 4);
         let (before, after) = (band_epe(&ramp), band_epe(&flow));
         eprintln!("EPE within 5 px of the boundary: ramp {before:.3}, selected {after:.3} px");
         // Measured: 1.200 -> 0.543 px (the pixels whose window straddles the boundary stay off).
@@ -335,8 +354,8 @@ mod tests {
         assert!(after < 0.6 * before, "{after} vs {before}");
         // No pass, or no reach, changes nothing.
         let mut same = ramp.clone();
-        select_at_boundaries(images, &mut same, 0, 4, &pool);
-        select_at_boundaries(images, &mut same, 2, 0, &pool);
+        select_at_boundaries(images, &mut same, 0, 4);
+        select_at_boundaries(images, &mut same, 2, 0);
         assert_eq!(same, ramp);
     }
 
@@ -350,16 +369,15 @@ mod tests {
             i0: &i0,
             i1: &i0,
         };
-        let pool = Pool::default();
         let mut flow = vec![[1.5, -2.0]; w * h];
-        select_at_boundaries(images, &mut flow, 3, 1000, &pool);
+        select_at_boundaries(images, &mut flow, 3, 1000);
         assert!(flow.iter().all(|f| *f == [1.5, -2.0]));
         // A flow of the wrong length is left alone; a NaN flow does not panic.
         let mut short = vec![[0.0; 2]; 4];
-        select_at_boundaries(images, &mut short, 1, 1, &pool);
+        select_at_boundaries(images, &mut short, 1, 1);
         assert_eq!(short.len(), 4);
         let mut nan = vec![[f32::NAN, 0.0]; w * h];
         nan[7] = [2.0, 0.0];
-        select_at_boundaries(images, &mut nan, 1, 1, &pool);
+        select_at_boundaries(images, &mut nan, 1, 1);
     }
 }

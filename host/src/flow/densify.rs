@@ -8,7 +8,7 @@
 //! Output rows are independent tasks and each pixel sums its patches in grid order, so the
 //! result does not depend on the thread count.
 
-use super::pool::Pool;
+use super::pool::{Lent, Pool};
 use super::pyramid::{Padded, Tap};
 use super::search::{Grid, LANES, PatchFlow, Template, lanes, lanes_mut, with_patch_size};
 use wide::f32x4;
@@ -29,7 +29,7 @@ pub(crate) fn densify(
     outlier_per_grey: f32,
     pool: &Pool,
     flows: &Pool<[f32; 2]>,
-) -> Vec<[f32; 2]> {
+) -> Lent<[f32; 2]> {
     with_patch_size!(grid.size, N => densify_n::<N>(t, i1, patches, grid, h, outlier_per_grey, pool, flows))
 }
 
@@ -44,7 +44,7 @@ fn densify_n<const N: usize>(
     outlier_per_grey: f32,
     pool: &Pool,
     flows: &Pool<[f32; 2]>,
-) -> Vec<[f32; 2]> {
+) -> Lent<[f32; 2]> {
     let (xs, ys, size) = (grid.xs, grid.ys, N);
     let w = t.w;
     // Sums of weight, weight·u and weight·v in separate planes (element-wise loops).

@@ -42,7 +42,7 @@
 
 use super::boundary::{Pair, select_at_boundaries};
 use super::densify::densify;
-use super::pool::Pool;
+use super::pool::{Lent, Pool};
 use super::pyramid::{
     Padded, Plane, downsample, downsample_luma, gradients, luma_plane, upsample_flow,
 };
@@ -483,7 +483,7 @@ impl DisFlow {
         }
         // Coarse to fine over the pyramid, down to level max(finest, 1).
         // `flow` is `fw x fh`, at level `fl` (0 while there is none).
-        let mut flow: Vec<[f32; 2]> = Vec::new();
+        let mut flow: Lent<[f32; 2]> = Lent::default();
         let (mut fw, mut fh, mut fl) = (0, 0, 0);
         for (l, (a, b)) in p0
             .iter()
@@ -543,7 +543,6 @@ impl DisFlow {
                 &mut flow,
                 prm.boundary_passes,
                 prm.boundary_reach_px,
-                &self.flows,
             );
         }
         for plane in rgb_luma.into_iter().flatten() {
@@ -552,7 +551,7 @@ impl DisFlow {
         for p in p0.into_iter().chain(p1) {
             self.buffers.put(p.data);
         }
-        Image::from_vec(w, h, flow).expect("the flow field has one vector per pixel")
+        Image::from_vec(w, h, flow.into_vec()).expect("the flow field has one vector per pixel")
     }
 
     /// One pyramid level: inverse search from `flow`, densification, refinement.
@@ -562,7 +561,7 @@ impl DisFlow {
         i1: &[f32],
         w: usize,
         h: usize,
-        flow: &mut Vec<[f32; 2]>,
+        flow: &mut Lent<[f32; 2]>,
         step: &LevelStep,
     ) {
         let prm = &self.params;

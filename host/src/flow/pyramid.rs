@@ -7,7 +7,7 @@
 //! scale by exactly 2 between levels.
 
 use super::luma_of;
-use super::pool::Pool;
+use super::pool::{Lent, Pool};
 use crate::par::*;
 use riseg_core::ImageView;
 
@@ -16,7 +16,7 @@ use riseg_core::ImageView;
 pub(crate) struct Plane {
     pub w: usize,
     pub h: usize,
-    pub data: Vec<f32>,
+    pub data: Lent<f32>,
 }
 
 /// Half the size (floor), each pixel the mean of a 2x2 block of `src` (`w x h`).
@@ -40,7 +40,7 @@ pub(crate) fn downsample(src: &[f32], w: usize, h: usize, pool: &Pool) -> Plane 
 }
 
 /// The luma of `rgb` ([`super::luma`]) in a buffer of `pool`, row-major.
-pub(crate) fn luma_plane(rgb: ImageView<'_, [u8; 3]>, pool: &Pool) -> Vec<f32> {
+pub(crate) fn luma_plane(rgb: ImageView<'_, [u8; 3]>, pool: &Pool) -> Lent<f32> {
     let w = rgb.width();
     let mut data = pool.scratch(w * rgb.height());
     if w > 0 {
@@ -79,7 +79,7 @@ pub(crate) fn downsample_luma(rgb: ImageView<'_, [u8; 3]>, pool: &Pool) -> Plane
 
 /// Central-difference gradients `(d/dx, d/dy)` of `src` (`w x h`, both `>= 1`), one-sided
 /// (half-weighted) at the border.
-pub(crate) fn gradients(src: &[f32], w: usize, h: usize, pool: &Pool) -> (Vec<f32>, Vec<f32>) {
+pub(crate) fn gradients(src: &[f32], w: usize, h: usize, pool: &Pool) -> (Lent<f32>, Lent<f32>) {
     let mut gx = pool.scratch(w * h);
     let mut gy = pool.scratch(w * h);
     gx.par_chunks_mut(w)
@@ -113,7 +113,7 @@ pub(crate) struct Padded {
     pub h: usize,
     pub pad: usize,
     pub stride: usize,
-    pub data: Vec<f32>,
+    pub data: Lent<f32>,
 }
 
 /// Where a (clamped) bilinear sample reads: the top-left tap's index and the weights.
@@ -202,7 +202,7 @@ pub(crate) fn upsample_flow(
     dst_h: usize,
     scale: usize,
     pool: &Pool<[f32; 2]>,
-) -> Vec<[f32; 2]> {
+) -> Lent<[f32; 2]> {
     let mut dst = pool.scratch(dst_w * dst_h);
     if src_w == 0 || src_h == 0 || dst_w == 0 {
         dst.fill([0.0; 2]);
@@ -275,7 +275,7 @@ mod tests {
         let src: Vec<f32> = (0..15).map(|v| v as f32).collect();
         let d = downsample(&src, 5, 3, &Pool::default());
         assert_eq!((d.w, d.h), (2, 1));
-        assert_eq!(d.data, vec![3.0, 5.0]);
+        assert_eq!(&d.data[..], [3.0, 5.0]);
     }
 
     #[test]

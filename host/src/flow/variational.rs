@@ -26,7 +26,7 @@
 //! neighbours lie in the other colour at slots `k + s` (left) and `k + s + 1` (right) of
 //! the same row and slot `k + 1` of the rows above and below.
 
-use super::pool::Pool;
+use super::pool::{Lent, Pool};
 use crate::par::*;
 use wide::f32x4;
 
@@ -66,7 +66,7 @@ pub(crate) struct RefineInput<'a> {
 #[derive(Debug, Clone)]
 pub(crate) struct Warpable {
     stride: usize,
-    data: Vec<f32>,
+    data: Lent<f32>,
 }
 
 impl Warpable {
@@ -134,7 +134,7 @@ impl Split {
 struct Planes {
     ps: usize,
     n: usize,
-    data: Vec<f32>,
+    data: Lent<f32>,
 }
 
 impl Planes {
@@ -158,11 +158,13 @@ impl Planes {
     }
 
     /// Plane `j` of buffer row `yy` (`yy = y + 1`; 0 and `h + 1` are the guard rows).
+    #[inline]
     fn row(&self, yy: usize, j: usize) -> &[f32] {
         &self.data[(yy * self.n + j) * self.ps..][..self.ps]
     }
 
     /// `n` values of plane `j` of buffer row `yy` from slot `start`.
+    #[inline]
     fn span(&self, yy: usize, j: usize, start: usize, n: usize) -> &[f32] {
         &self.row(yy, j)[start..][..n]
     }

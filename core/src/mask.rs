@@ -478,11 +478,8 @@ fn intersect(
     {
         let statics = grid.static_row(static_t1, y);
         for ((k, &c), &s) in keys.iter_mut().zip(carried).zip(statics) {
-            *k = if s == 0 {
-                0
-            } else {
-                (u32::from(c) << 16) | u32::from(s)
-            };
+            // Zero where the static label is (branch-free, so it vectorises).
+            *k = ((u32::from(c) << 16) | u32::from(s)) & 0u32.wrapping_sub(u32::from(s != 0));
         }
     }
     let count = label_segments(grid, key, min_px, segment, queue, segs)?;
@@ -1178,7 +1175,8 @@ impl SplatTarget<'_> {
         let z = f32x8::new(*depths);
         // valid_depth: NaN fails both comparisons, infinities one.
         let has_depth = z.simd_gt(f32x8::ZERO) & z.simd_le(f32x8::splat(MAX_DEPTH_M));
-        let xs = f32x8::new(core::array::from_fn(|l| (x0 + l) as Real));
+        // Exact: integers below 2^24 (no conversion per lane).
+        let xs = f32x8::splat(x0 as Real) + f32x8::new([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
         let u = xs + f32x8::new(flows.map(|f| f[0]));
         let v = f32x8::splat(y as Real) + f32x8::new(flows.map(|f| f[1]));
         let (wx, in_x) = window_coordinate(u, self.grid.x0, self.grid.width);

@@ -1756,7 +1756,9 @@ fn collect_seeds(
     let Some(seeds) = seeds.get_mut(..len) else {
         return 0;
     };
-    seeds.sort_unstable();
+    // Entries of one (segment, group) are equal here (one seed each, the segment's
+    // label), so sorting by that pair alone, one integer compare, orders them as `Ord`.
+    seeds.sort_unstable_by_key(|s| (u64::from(s.segment) << 32) | u64::from(s.group));
     // Collapse equal (segment, group) entries, summing counts.
     let mut out = 0usize;
     for i in 0..seeds.len() {

@@ -31,7 +31,7 @@ use crate::{
     Config, Error, ImageView, Intrinsics, Twist,
     error::{Buffer, check_len},
     image::{MAX_DEPTH_M, valid_depth},
-    math::{Real, floor, sqrt4},
+    math::{Real, floor_to_i64, sqrt4},
     rng::Pcg32,
     se3::{spatial_twist, try_frame_from_points},
 };
@@ -423,7 +423,7 @@ fn local_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, cfg: &Config) -> Op
     if r == 0 {
         return Some(z_ref);
     }
-    let (xc, yc) = (floor(u + 0.5) as i64, floor(v + 0.5) as i64);
+    let (xc, yc) = (floor_to_i64(u + 0.5), floor_to_i64(v + 0.5));
     // Normal equations of the plane fit, in offsets from (u, v) and from z_ref.
     let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     let (mut sz, mut sxz, mut syz) = (0.0, 0.0, 0.0);
@@ -476,12 +476,12 @@ fn bilinear_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, edge_m: Real) ->
     if !(u.is_finite() && v.is_finite()) || u < 0.0 || v < 0.0 {
         return None;
     }
-    let (x0, y0) = (floor(u), floor(v));
-    let (fx, fy) = (u - x0, v - y0);
-    let (x0, y0) = (x0 as i64, y0 as i64);
+    let (x0, y0) = (floor_to_i64(u), floor_to_i64(v));
+    // Exact below 2^63; from there on no pixel is found anyway.
+    let (fx, fy) = (u - x0 as Real, v - y0 as Real);
     // At the last row/column the far neighbour has zero weight; reuse the near one.
-    let x1 = if fx > 0.0 { x0 + 1 } else { x0 };
-    let y1 = if fy > 0.0 { y0 + 1 } else { y0 };
+    let x1 = if fx > 0.0 { x0.saturating_add(1) } else { x0 };
+    let y1 = if fy > 0.0 { y0.saturating_add(1) } else { y0 };
     let z00 = valid_depth(depth.at(x0, y0)?)?;
     let z10 = valid_depth(depth.at(x1, y0)?)?;
     let z01 = valid_depth(depth.at(x0, y1)?)?;

@@ -206,17 +206,8 @@ pub fn group_frames(
     // between two bodies' twists links to both, and the whole sparser body would chain
     // through it into the denser one if its mode could point that far. Both decisions
     // are per pair code, so they are tabled once.
-    let nearness = |code: u8| code & !ACROSS;
     let attach_bins = (ATTACH_BANDWIDTHS * cfg.kde_bandwidth_m * bins_per_m) as u8;
-    let mut links_at = [false; 256];
-    let mut attaches_at = [false; 256];
-    for (code, (link, attach)) in links_at.iter_mut().zip(attaches_at.iter_mut()).enumerate() {
-        let code = code as u8;
-        *link = code != NO_PAIR
-            && code & ACROSS == 0
-            && posterior[usize::from(code) % KDE_BINS] > cfg.link_posterior;
-        *attach = *link && nearness(code) <= attach_bins;
-    }
+    let (links_at, attaches_at) = link_tables(&posterior, cfg.link_posterior, attach_bins);
 
     // Pass 2: density of each frame = its number of links. The posterior usually falls
     // with the distance, so that the linking codes are the ones below a bound: then the
@@ -596,6 +587,26 @@ fn pair_rows_mut(n: usize, pair_bin: &mut [u8]) -> impl Iterator<Item = (usize, 
         rest = tail;
         Some((i, row))
     })
+}
+
+/// Which pair codes link (inside one segment, posterior above `link_posterior`) and
+/// which of those attach (bin at most `attach_bins`), tabled by code. The codes past
+/// the last bin and below [`ACROSS`] never occur and never link, so that the linking
+/// codes of a posterior falling with the distance are the ones below a bound
+/// ([`codes_below`]), which passes 2 and 3 test with one compare.
+fn link_tables(
+    posterior: &[Real; KDE_BINS],
+    link_posterior: Real,
+    attach_bins: u8,
+) -> ([bool; 256], [bool; 256]) {
+    let mut links_at = [false; 256];
+    let mut attaches_at = [false; 256];
+    for (code, (link, attach)) in links_at.iter_mut().zip(attaches_at.iter_mut()).enumerate() {
+        // Codes with ACROSS set (and NO_PAIR) are past the bins too.
+        *link = posterior.get(code).is_some_and(|&p| p > link_posterior);
+        *attach = *link && code <= usize::from(attach_bins);
+    }
+    (links_at, attaches_at)
 }
 
 /// `bound` if `table` holds exactly for the codes below it, `None` if it is not of
@@ -1123,6 +1134,21 @@ mod tests {
                 .all(|&(i, j, code)| i < j && usize::from(code) == 10 * i + j)
         );
         assert!(seen.windows(2).all(|w| (w[0].0, w[0].1) < (w[1].0, w[1].1)));
+    }
+
+    /// A posterior that falls with the distance tables its linking and attaching codes
+    /// as the ones below a bound, so that passes 2 and 3 take their one-compare paths.
+    /// (Tabling the posterior by `code % KDE_BINS` also linked the codes just past the
+    /// last bin, which never occur, and sent every step to the table look-ups.)
+    #[test]
+    fn a_falling_posterior_links_the_codes_below_a_bound() {
+        let mut posterior = [0.0; KDE_BINS];
+        posterior[..6].fill(0.99);
+        posterior[6] = 0.2;
+        let (links_at, attaches_at) = link_tables(&posterior, 0.5, 4);
+        assert_eq!(codes_below(&links_at), Some(6));
+        assert_eq!(codes_below(&attaches_at), Some(5));
+        assert!(!links_at[usize::from(ACROSS)] && !links_at[usize::from(NO_PAIR)]);
     }
 
     proptest::proptest! {

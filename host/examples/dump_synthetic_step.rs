@@ -79,6 +79,8 @@ fn config_json(cfg: &Config) -> String {
         ("frame_min_side_m", cfg.frame_min_side_m.to_string()),
         ("frame_min_sin", cfg.frame_min_sin.to_string()),
         ("depth_edge_m", cfg.depth_edge_m.to_string()),
+        ("depth_window_px", cfg.depth_window_px.to_string()),
+        ("depth_window_tol_m", cfg.depth_window_tol_m.to_string()),
         ("frame_rigid_tol_m", cfg.frame_rigid_tol_m.to_string()),
         ("length_scale_m", cfg.length_scale_m.to_string()),
         ("static_below_m", cfg.static_below_m.to_string()),
@@ -88,6 +90,7 @@ fn config_json(cfg: &Config) -> String {
         ("min_group_frames", cfg.min_group_frames.to_string()),
         ("min_segment_px", cfg.min_segment_px.to_string()),
         ("grow_tol_px", cfg.grow_tol_px.to_string()),
+        ("merge_twist_m", cfg.merge_twist_m.to_string()),
         ("seed", cfg.seed.to_string()),
     ];
     let body: Vec<String> = fields

@@ -104,7 +104,12 @@ pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
         // the RGB images are never held (the flow `estimate` gives on them, bit for bit).
         ModelArg::Builtin => {
             let (first, second) = read_pair(args, luma_of)?;
-            DisFlow::new(params)?.estimate_gray(&first, &second)
+            let estimator = DisFlow::new(params)?;
+            let flow = estimator.estimate_gray(&first, &second);
+            // Left to the process's exit, which returns all memory at once: freed here,
+            // each large buffer is unmapped by a system call of its own.
+            core::mem::forget((estimator, first, second));
+            flow
         }
         #[cfg(feature = "onnx")]
         ModelArg::Onnx(_) => {
@@ -125,6 +130,7 @@ pub(super) fn command(args: &FlowArgs) -> anyhow::Result<()> {
     if let Some(viz) = &args.viz {
         write_rgb8_as(viz, &flow_to_rgb(&flow, None), Durability::Derived)?;
     }
+    core::mem::forget(flow);
     Ok(())
 }
 

@@ -402,15 +402,18 @@ fn search_level_n<const N: usize>(
     let size = N;
     let mn = s.mean_normalization;
     let ctx = Ctx::<N> { t, i1, s };
-    let models: Vec<PatchModel> = ys
-        .iter()
-        .flat_map(|&py| xs.iter().map(move |&px| (px, py)))
-        .map(|(px, py)| {
-            let mut m = PatchModel::new::<N>(t, px, py, mn);
-            m.start = init[(py + size / 2) * t.w + px + size / 2];
-            m
-        })
-        .collect();
+    // Made at their final length: a `flat_map` does not know its length, and collecting it
+    // grows the vector by copies, each faulting in fresh pages (one-shot `riseg flow`).
+    let mut models: Vec<PatchModel> = Vec::with_capacity(nx * ny);
+    models.extend(
+        ys.iter()
+            .flat_map(|&py| xs.iter().map(move |&px| (px, py)))
+            .map(|(px, py)| {
+                let mut m = PatchModel::new::<N>(t, px, py, mn);
+                m.start = init[(py + size / 2) * t.w + px + size / 2];
+                m
+            }),
+    );
     let mut state = vec![
         State {
             u: 0.0,
@@ -493,9 +496,10 @@ fn sweep_lines<const N: usize>(
 
 /// `rows x cols` row-major into `cols x rows` row-major.
 fn transpose<T: Copy>(a: &[T], cols: usize, rows: usize) -> Vec<T> {
-    (0..cols)
-        .flat_map(|c| (0..rows).map(move |r| a[r * cols + c]))
-        .collect()
+    // At its final length, as `models` in `search_level_n`.
+    let mut t = Vec::with_capacity(cols * rows);
+    t.extend((0..cols).flat_map(|c| (0..rows).map(move |r| a[r * cols + c])));
+    t
 }
 
 #[cfg(test)]

@@ -187,12 +187,13 @@ pub(crate) fn refine(
         return;
     }
     let sp = Split::new(inp.w, inp.h);
-    // Per colour: flow (u, v), warped derivatives (ix, iy, iz), increment (du, dv),
-    // smoothness weights to the right and lower neighbour (wr, wd), and the frozen system
-    // (a12, 1/a11, 1/a22, b1, b2). Neighbour reads reach the guards of the flow, increment
-    // and weight planes, so those start zeroed; the others are only read where written.
+    // Per colour: flow (u, v), increment (du, dv), smoothness weights to the right and
+    // lower neighbour (wr, wd), and the frozen system (a12, 1/a11, 1/a22, b1, b2), whose
+    // first three planes hold the warped derivatives (ix, iy, iz) until `system` turns
+    // each pixel's into its equations (one buffer less to fault in: one-shot `riseg flow`,
+    // 230 pages at level 1). Neighbour reads reach the guards of the flow, increment and
+    // weight planes, so those start zeroed; the system is only read where written.
     let mut uv = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
-    let mut deriv = [Planes::scratch(&sp, 3, pool), Planes::scratch(&sp, 3, pool)];
     let mut duv = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
     let mut wts = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
     let mut sys = [Planes::scratch(&sp, 5, pool), Planes::scratch(&sp, 5, pool)];
@@ -207,13 +208,13 @@ pub(crate) fn refine(
         })
     });
     for _ in 0..s.fixed_point_iters {
-        for (c, ((uvc, dc), derc)) in uv
+        for (c, ((uvc, dc), sc)) in uv
             .iter_mut()
             .zip(duv.iter_mut())
-            .zip(deriv.iter_mut())
+            .zip(sys.iter_mut())
             .enumerate()
         {
-            warp(&sp, c, inp, uvc, dc, derc);
+            warp(&sp, c, inp, uvc, dc, sc);
         }
         for (c, wc) in wts.iter_mut().enumerate() {
             smoothness(&sp, c, &uv, &duv, wc, s.alpha);
@@ -222,7 +223,7 @@ pub(crate) fn refine(
             }
         }
         for (c, sc) in sys.iter_mut().enumerate() {
-            system(&sp, c, &uv, &deriv[c], &duv[c], &wts, sc, s.delta);
+            system(&sp, c, &uv, &duv[c], &wts, sc, s.delta);
         }
         for _ in 0..s.sor_iters {
             for (c, sc) in sys.iter().enumerate() {
@@ -233,7 +234,7 @@ pub(crate) fn refine(
         }
     }
     gather(&sp, &uv, &duv, flow);
-    for p in [uv, deriv, duv, wts, sys].into_iter().flatten() {
+    for p in [uv, duv, wts, sys].into_iter().flatten() {
         pool.put(p.data);
     }
     for p in edges.into_iter().flatten() {
@@ -295,7 +296,8 @@ fn scatter(sp: &Split, c: usize, flow: &[[f32; 2]], uv: &mut Planes) {
 }
 
 /// Moves colour `c`'s increment into its flow (`u += du`, `du = 0`) and warps the second
-/// image by the result: `Iz = I1(x + u) − I0(x)`, `Ix`, `Iy` averaged over both images.
+/// image by the result: `Iz = I1(x + u) − I0(x)`, `Ix`, `Iy` averaged over both images,
+/// into the first three planes of `deriv`.
 fn warp(
     sp: &Split,
     c: usize,
@@ -318,7 +320,8 @@ fn warp(
             let (ur, vr) = uvr.split_at_mut(ps);
             let (dur, dvr) = dr.split_at_mut(ps);
             let (ixr, rest) = der.split_at_mut(ps);
-            let (iyr, izr) = rest.split_at_mut(ps);
+            let (iyr, rest) = rest.split_at_mut(ps);
+            let izr = &mut rest[..ps];
             let (i0, gx0, gy0) = (
                 &inp.i0[y * sp.w..][..sp.w],
                 &inp.gx0[y * sp.w..][..sp.w],
@@ -416,13 +419,13 @@ fn smoothness(
     });
 }
 
-/// Freezes the system of colour `c` at the current increment.
-#[allow(clippy::too_many_arguments)] // the planes of one red-black system, read side by side
+/// Freezes the system of colour `c` at the current increment, in `out` (five planes) over
+/// the warped derivatives its first three planes hold ([`warp`]): each pixel's are read
+/// before its equations are written.
 fn system(
     sp: &Split,
     c: usize,
     uv: &[Planes; 2],
-    deriv: &Planes,
     duv: &Planes,
     wts: &[Planes; 2],
     out: &mut Planes,
@@ -435,11 +438,6 @@ fn system(
         let s = Split::parity(c, y);
         let n = sp.count(c, y);
         let yy = y + 1;
-        let (ix, iy, iz) = (
-            deriv.span(yy, 0, 1, n),
-            deriv.span(yy, 1, 1, n),
-            deriv.span(yy, 2, 1, n),
-        );
         let (du, dv) = (duv.span(yy, 0, 1, n), duv.span(yy, 1, 1, n));
         let (um, vm) = (uvm.span(yy, 0, 1, n), uvm.span(yy, 1, 1, n));
         let (wr, wd) = (wm.span(yy, 0, 1, n), wm.span(yy, 1, 1, n));
@@ -450,7 +448,7 @@ fn system(
         let (uu, vu) = (&uvo.row(yy - 1, 0)[1..][..n], &uvo.row(yy - 1, 1)[1..][..n]);
         let (ud, vd) = (&uvo.row(yy + 1, 0)[1..][..n], &uvo.row(yy + 1, 1)[1..][..n]);
         let mut parts = chunk.chunks_exact_mut(ps).map(|r| &mut r[1..][..n]);
-        let (Some(a12), Some(inv11), Some(inv22), Some(b1), Some(b2)) = (
+        let (Some(ix_a12), Some(iy_inv11), Some(iz_inv22), Some(b1), Some(b2)) = (
             parts.next(),
             parts.next(),
             parts.next(),
@@ -460,20 +458,21 @@ fn system(
             return;
         };
         for k in 0..n {
-            let r = iz[k] + ix[k] * du[k] + iy[k] * dv[k];
+            let (ix, iy, iz) = (ix_a12[k], iy_inv11[k], iz_inv22[k]);
+            let r = iz + ix * du[k] + iy * dv[k];
             let pd = delta / (r * r + eps2).sqrt();
             let wsum = wl[k] + wr[k] + wu[k] + wd[k];
-            let a11 = pd * ix[k] * ix[k] + wsum;
-            let a22 = pd * iy[k] * iy[k] + wsum;
-            a12[k] = pd * ix[k] * iy[k];
-            inv11[k] = if a11 > 0.0 { 1.0 / a11 } else { 0.0 };
-            inv22[k] = if a22 > 0.0 { 1.0 / a22 } else { 0.0 };
-            b1[k] = -pd * ix[k] * iz[k]
+            let a11 = pd * ix * ix + wsum;
+            let a22 = pd * iy * iy + wsum;
+            ix_a12[k] = pd * ix * iy;
+            iy_inv11[k] = if a11 > 0.0 { 1.0 / a11 } else { 0.0 };
+            iz_inv22[k] = if a22 > 0.0 { 1.0 / a22 } else { 0.0 };
+            b1[k] = -pd * ix * iz
                 + wl[k] * (ul[k] - um[k])
                 + wr[k] * (ur[k] - um[k])
                 + wu[k] * (uu[k] - um[k])
                 + wd[k] * (ud[k] - um[k]);
-            b2[k] = -pd * iy[k] * iz[k]
+            b2[k] = -pd * iy * iz
                 + wl[k] * (vl[k] - vm[k])
                 + wr[k] * (vr[k] - vm[k])
                 + wu[k] * (vu[k] - vm[k])

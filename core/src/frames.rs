@@ -299,25 +299,38 @@ pub fn compute_twists(
 /// Pixels counted at once when skipping ahead to the next sample.
 const SKIP_CHUNK_PX: usize = 64;
 
+/// Rows whose counts of eligible pixels [`sample_pixels`] keeps from its first pass (on
+/// the stack, 4 bytes a row), so that the second skips them whole; rows past these are
+/// counted again, chunk by chunk.
+const COUNTED_ROWS: usize = 512;
+
 /// Eligible pixels (labelled, with a depth reading at `t`) among a run of a row. Counts
 /// without branches so that it vectorises; the same test as [`valid_depth`].
-fn count_eligible(labels: &[u16], depths: &[f32]) -> u64 {
+fn count_eligible(labels: &[u16], depths: &[f32]) -> u32 {
     let eligible =
         |(&label, &z): (&u16, &f32)| u32::from((label != 0) & (z > 0.0) & (z <= MAX_DEPTH_M));
-    u64::from(labels.iter().zip(depths).map(eligible).sum::<u32>())
+    labels.iter().zip(depths).map(eligible).sum::<u32>()
 }
 
 /// Calls `f(x, y, label, depth_m)` for the eligible pixel (labelled, with a depth reading
 /// at `t`) of rank `from` in row-major order, then for the one of the rank `f` returns
-/// (larger), and so on until `f` returns `None`; runs of pixels before the wanted rank are
-/// counted in bulk, not visited.
+/// (larger), and so on until `f` returns `None`; rows of which `counted` holds the count
+/// (from the top) and runs of pixels before the wanted rank are counted in bulk, not
+/// visited.
 fn for_each_eligible_from(
     input: &MotionInput<'_>,
+    counted: &[u32],
     mut from: u64,
     mut f: impl FnMut(usize, usize, u16, Real) -> Option<u64>,
 ) {
     let mut rank = 0u64;
     for y in 0..input.size().1 {
+        if let Some(&here) = counted.get(y)
+            && rank + u64::from(here) <= from
+        {
+            rank += u64::from(here);
+            continue;
+        }
         let (Some(labels), Some(depths)) = (input.labels_t.row(y), input.depth_t.row(y)) else {
             return;
         };
@@ -326,7 +339,7 @@ fn for_each_eligible_from(
             .zip(depths.chunks(SKIP_CHUNK_PX))
             .enumerate()
         {
-            let here = count_eligible(labels, depths);
+            let here = u64::from(count_eligible(labels, depths));
             if rank + here <= from {
                 rank += here;
                 continue;
@@ -350,12 +363,28 @@ fn for_each_eligible_from(
 
 /// Stratified seeded sampling; returns how many samples were written (sorted row-major).
 fn sample_pixels(input: &MotionInput<'_>, cfg: &Config, out: &mut [FrameSample]) -> usize {
+    sample_pixels_counting::<COUNTED_ROWS>(input, cfg, out)
+}
+
+/// [`sample_pixels`], keeping the counts of the first `ROWS` rows; tests use a small
+/// `ROWS` to reach the rows counted again.
+fn sample_pixels_counting<const ROWS: usize>(
+    input: &MotionInput<'_>,
+    cfg: &Config,
+    out: &mut [FrameSample],
+) -> usize {
+    let mut counts = [0u32; ROWS];
     let mut total: u64 = 0;
     for y in 0..input.size().1 {
         if let (Some(labels), Some(depths)) = (input.labels_t.row(y), input.depth_t.row(y)) {
-            total += count_eligible(labels, depths);
+            let here = count_eligible(labels, depths);
+            total += u64::from(here);
+            if let Some(slot) = counts.get_mut(y) {
+                *slot = here;
+            }
         }
     }
+    let counted = counts.get(..input.size().1).unwrap_or(&counts);
     let want = (out.len() as u64).min(total);
     if want == 0 {
         return 0;
@@ -372,7 +401,7 @@ fn sample_pixels(input: &MotionInput<'_>, cfg: &Config, out: &mut [FrameSample])
     let k = &input.intrinsics;
     // Called exactly at each drawn rank; returns the next one (ranks only grow: stratum
     // i+1 starts where stratum i ends).
-    for_each_eligible_from(input, first, |x, y, label, z| {
+    for_each_eligible_from(input, counted, first, |x, y, label, z| {
         if let Some(slot) = out.get_mut(taken as usize) {
             let (u, v) = (x as Real, y as Real);
             let z = local_depth(&input.depth_t, u, v, cfg).unwrap_or(z);
@@ -424,9 +453,11 @@ fn local_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, cfg: &Config) -> Op
         return Some(z_ref);
     }
     let (xc, yc) = (floor_to_i64(u + 0.5), floor_to_i64(v + 0.5));
-    // Normal equations of the plane fit, in offsets from (u, v) and from z_ref.
-    let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    let (mut sz, mut sxz, mut syz) = (0.0, 0.0, 0.0);
+    let tol = cfg.depth_window_tol_m;
+    // Normal equations of the plane fit, in offsets from (u, v) and from z_ref: the sums
+    // `[n, sx, sy, sz]`, `[sxx, syy, sxy, sxz]` as lanes, and `syz`. Each lane adds its
+    // terms in pixel order, as one sum per variable would.
+    let (mut sums_a, mut sums_b, mut syz) = (f32x4::ZERO, f32x4::ZERO, 0.0);
     // The window clipped to the image, walked as row slices (same order as pixel by pixel).
     let (width, height) = depth.size();
     let x_lo = (xc - r).max(0);
@@ -438,27 +469,21 @@ fn local_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, cfg: &Config) -> Op
         else {
             continue;
         };
+        let dy = y as Real - v;
         for (x, &z) in (x_lo..).zip(run) {
-            let Some(z) = valid_depth(z) else {
-                continue;
-            };
             let dz = z - z_ref;
-            let same_surface = dz.abs() <= cfg.depth_window_tol_m;
-            if !same_surface {
+            // A reading ([`valid_depth`]) of the same surface.
+            if !((z > 0.0) & (z <= MAX_DEPTH_M) & (dz.abs() <= tol)) {
                 continue;
             }
-            let (dx, dy) = (x as Real - u, y as Real - v);
-            n += 1.0;
-            sx += dx;
-            sy += dy;
-            sxx += dx * dx;
-            syy += dy * dy;
-            sxy += dx * dy;
-            sz += dz;
-            sxz += dx * dz;
+            let dx = x as Real - u;
+            sums_a += f32x4::new([1.0, dx, dy, dz]);
+            sums_b += f32x4::new([dx, dy, dx, dx]) * f32x4::new([dx, dy, dy, dz]);
             syz += dy * dz;
         }
     }
+    let [n, sx, sy, sz] = sums_a.to_array();
+    let [sxx, syy, sxy, sxz] = sums_b.to_array();
     // Solve [[n sx sy] [sx sxx sxy] [sy sxy syy]] (a b c) = (sz sxz syz) for a (Cramer).
     let det = n * (sxx * syy - sxy * sxy) - sx * (sx * syy - sxy * sy) + sy * (sx * sxy - sxx * sy);
     if !(n >= 6.0 && det.abs() > 1e-3 * n * n * n) {

@@ -22,7 +22,7 @@
 //!   axes (DESIGN.md §3): rotation noise times a 60 cm lever arm to the camera would swamp
 //!   the linear part of the twist.
 
-use core::hint::select_unpredictable;
+use core::{hint::select_unpredictable, ops::RangeInclusive};
 
 use nalgebra::{Point3, Vector3};
 use wide::f32x4;
@@ -454,34 +454,18 @@ fn local_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, cfg: &Config) -> Op
     }
     let (xc, yc) = (floor_to_i64(u + 0.5), floor_to_i64(v + 0.5));
     let tol = cfg.depth_window_tol_m;
-    // Normal equations of the plane fit, in offsets from (u, v) and from z_ref: the sums
-    // `[n, sx, sy, sz]`, `[sxx, syy, sxy, sxz]` as lanes, and `syz`. Each lane adds its
-    // terms in pixel order, as one sum per variable would.
-    let (mut sums_a, mut sums_b, mut syz) = (f32x4::ZERO, f32x4::ZERO, 0.0);
-    // The window clipped to the image, walked as row slices (same order as pixel by pixel).
+    // The window clipped to the image.
     let (width, height) = depth.size();
-    let x_lo = (xc - r).max(0);
-    let x_hi = (xc + r).min(width as i64 - 1);
-    for y in (yc - r).max(0)..=(yc + r).min(height as i64 - 1) {
-        let Some(run) = depth
-            .row(y as usize)
-            .and_then(|row| row.get(x_lo as usize..=x_hi as usize))
-        else {
-            continue;
-        };
-        let dy = y as Real - v;
-        for (x, &z) in (x_lo..).zip(run) {
-            let dz = z - z_ref;
-            // A reading ([`valid_depth`]) of the same surface.
-            if !((z > 0.0) & (z <= MAX_DEPTH_M) & (dz.abs() <= tol)) {
-                continue;
-            }
-            let dx = x as Real - u;
-            sums_a += f32x4::new([1.0, dx, dy, dz]);
-            sums_b += f32x4::new([dx, dy, dx, dx]) * f32x4::new([dx, dy, dy, dz]);
-            syz += dy * dz;
-        }
-    }
+    let columns = (xc - r).max(0)..=(xc + r).min(width as i64 - 1);
+    let rows = (yc - r).max(0)..=(yc + r).min(height as i64 - 1);
+    let window = (columns, rows);
+    // Rounding is monotone and NaN fails: when `z_ref` lies farther than `tol` from both
+    // limits of [`valid_depth`], every depth within `tol` of it is a reading.
+    let (sums_a, sums_b, syz) = if z_ref > tol && MAX_DEPTH_M - z_ref > tol {
+        plane_sums::<false>(depth, window, [u, v, z_ref], tol)
+    } else {
+        plane_sums::<true>(depth, window, [u, v, z_ref], tol)
+    };
     let [n, sx, sy, sz] = sums_a.to_array();
     let [sxx, syy, sxy, sxz] = sums_b.to_array();
     // Solve [[n sx sy] [sx sxx sxy] [sy sxy syy]] (a b c) = (sz sxz syz) for a (Cramer).
@@ -493,6 +477,44 @@ fn local_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, cfg: &Config) -> Op
         sz * (sxx * syy - sxy * sxy) - sx * (sxz * syy - sxy * syz) + sy * (sxz * sxy - sxx * syz);
     let a = det_a / det;
     Some(z_ref + a).filter(|z| z.is_finite() && *z > 0.0)
+}
+
+/// The sums of [`local_depth`]'s normal equations over the readings of `window`
+/// (columns, rows) within `tol` of `z_ref`, in offsets from `(u, v)` and from `z_ref`:
+/// `[n, sx, sy, sz]` and `[sxx, syy, sxy, sxz]` as lanes, and `syz`. Each lane adds its
+/// terms in pixel order, as one sum per variable would. `CHECK_READING` tests each depth
+/// with [`valid_depth`] too (needless when the tolerance implies it).
+#[inline(always)]
+fn plane_sums<const CHECK_READING: bool>(
+    depth: &ImageView<'_, f32>,
+    (columns, rows): (RangeInclusive<i64>, RangeInclusive<i64>),
+    [u, v, z_ref]: [Real; 3],
+    tol: Real,
+) -> (f32x4, f32x4, Real) {
+    let (mut sums_a, mut sums_b, mut syz) = (f32x4::ZERO, f32x4::ZERO, 0.0);
+    let (x_lo, x_hi) = (*columns.start(), *columns.end());
+    // Row slices, in the same order as pixel by pixel.
+    for y in rows {
+        let Some(run) = depth
+            .row(y as usize)
+            .and_then(|row| row.get(x_lo as usize..=x_hi as usize))
+        else {
+            continue;
+        };
+        let dy = y as Real - v;
+        for (x, &z) in (x_lo..).zip(run) {
+            let dz = z - z_ref;
+            let reading = !CHECK_READING || ((z > 0.0) & (z <= MAX_DEPTH_M));
+            if !(reading & (dz.abs() <= tol)) {
+                continue;
+            }
+            let dx = x as Real - u;
+            sums_a += f32x4::new([1.0, dx, dy, dz]);
+            sums_b += f32x4::new([dx, dy, dx, dx]) * f32x4::new([dx, dy, dy, dz]);
+            syz += dy * dz;
+        }
+    }
+    (sums_a, sums_b, syz)
 }
 
 /// Depth at a sub-pixel position from its four neighbours; `None` if any is missing, the

@@ -1283,9 +1283,91 @@ mod tests {
         }
     }
 
+    /// [`local_depth`] as it was before the sums became lanes: one sum per variable, every
+    /// depth tested with [`valid_depth`].
+    fn local_depth_plain(
+        depth: &ImageView<'_, f32>,
+        u: Real,
+        v: Real,
+        cfg: &Config,
+    ) -> Option<Real> {
+        let z_ref = bilinear_depth(depth, u, v, cfg.depth_edge_m)?;
+        let r = cfg.depth_window_px as i64;
+        let (xc, yc) = (floor_to_i64(u + 0.5), floor_to_i64(v + 0.5));
+        let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut sz, mut sxz, mut syz) = (0.0, 0.0, 0.0);
+        for y in yc - r..=yc + r {
+            for x in xc - r..=xc + r {
+                let Some(z) = depth.at(x, y).and_then(valid_depth) else {
+                    continue;
+                };
+                let dz = z - z_ref;
+                if dz.abs() > cfg.depth_window_tol_m {
+                    continue;
+                }
+                let (dx, dy) = (x as Real - u, y as Real - v);
+                n += 1.0;
+                sx += dx;
+                sy += dy;
+                sxx += dx * dx;
+                syy += dy * dy;
+                sxy += dx * dy;
+                sz += dz;
+                sxz += dx * dz;
+                syz += dy * dz;
+            }
+        }
+        let det =
+            n * (sxx * syy - sxy * sxy) - sx * (sx * syy - sxy * sy) + sy * (sx * sxy - sxx * sy);
+        if !(n >= 6.0 && det.abs() > 1e-3 * n * n * n) {
+            return Some(z_ref);
+        }
+        let det_a = sz * (sxx * syy - sxy * sxy) - sx * (sxz * syy - sxy * syz)
+            + sy * (sxz * sxy - sxx * syz);
+        Some(z_ref + det_a / det).filter(|z| z.is_finite() && *z > 0.0)
+    }
+
     proptest::proptest! {
-        /// The chunk-skipping sampler draws exactly the pixels a plain scan over the list
-        /// of eligible pixels draws, for any mask, depth holes and seed.
+        /// [`local_depth`] gives the plain plane fit's depth bit for bit, for any window
+        /// radius and tolerance, near the limits of a depth reading (where the tolerance
+        /// does not imply one) and with holes and absurd readings in the window.
+        #[test]
+        fn local_depth_is_the_plain_plane_fit(
+            width in 1usize..12,
+            cells in proptest::collection::vec((0u8..8, -1.0f32..1.0), 1..144),
+            base_m in proptest::sample::select(vec![0.002f32, 0.6, 99.999]),
+            at in proptest::array::uniform2(-0.1f32..1.1),
+            radius_px in 1u32..=8,
+            tol_m in proptest::sample::select(vec![0.003f32, 0.05, 1.0]),
+        ) {
+            let height = cells.len() / width;
+            proptest::prop_assume!(height > 0);
+            let (u, v) = (at[0] * width as f32, at[1] * height as f32);
+            let depth: std::vec::Vec<f32> = cells[..width * height]
+                .iter()
+                .map(|&(kind, noise)| match kind {
+                    0 => 0.0,
+                    1 => f32::NAN,
+                    2 => 1e3,
+                    _ => base_m + noise * 0.004,
+                })
+                .collect();
+            let depth = ImageView::packed(width, height, &depth).unwrap();
+            let mut cfg = Config::PAPER;
+            cfg.depth_window_px = radius_px;
+            cfg.depth_window_tol_m = tol_m;
+            cfg.depth_edge_m = 1.0;
+            proptest::prop_assert_eq!(
+                local_depth(&depth, u, v, &cfg).map(f32::to_bits),
+                local_depth_plain(&depth, u, v, &cfg).map(f32::to_bits)
+            );
+        }
+    }
+
+    proptest::proptest! {
+        /// The row- and chunk-skipping sampler draws exactly the pixels a plain scan over
+        /// the list of eligible pixels draws, for any mask, depth holes and seed, with the
+        /// counts of every row kept or of only the first few.
         #[test]
         fn sampling_draws_the_ranks_a_plain_scan_draws(
             width in 1usize..150,
@@ -1315,6 +1397,10 @@ mod tests {
             cfg.seed = seed;
             let mut out = vec![FrameSample::EMPTY; n];
             let got = sample_pixels(&input, &cfg, &mut out);
+            // With the counts of 3 rows kept, the rows past them are counted again.
+            let mut out_3 = vec![FrameSample::EMPTY; n];
+            proptest::prop_assert_eq!(sample_pixels_counting::<3>(&input, &cfg, &mut out_3), got);
+            proptest::prop_assert_eq!(&out_3, &out);
 
             let eligible: std::vec::Vec<[u32; 2]> = (0..cells.len())
                 .filter(|&i| labels[i] != 0 && valid_depth(depth[i]).is_some())

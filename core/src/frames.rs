@@ -300,8 +300,8 @@ pub fn compute_twists(
 const SKIP_CHUNK_PX: usize = 64;
 
 /// Rows whose counts of eligible pixels [`sample_pixels`] keeps from its first pass (on
-/// the stack, 4 bytes a row), so that the second skips them whole; rows past these are
-/// counted again, chunk by chunk.
+/// the stack, 2 bytes a row), so that the second skips them whole; rows past these, and
+/// from the first whose count exceeds `u16`, are counted again, chunk by chunk.
 const COUNTED_ROWS: usize = 512;
 
 /// Eligible pixels (labelled, with a depth reading at `t`) among a run of a row. Counts
@@ -319,7 +319,7 @@ fn count_eligible(labels: &[u16], depths: &[f32]) -> u32 {
 /// visited.
 fn for_each_eligible_from(
     input: &MotionInput<'_>,
-    counted: &[u32],
+    counted: &[u16],
     mut from: u64,
     mut f: impl FnMut(usize, usize, u16, Real) -> Option<u64>,
 ) {
@@ -366,25 +366,30 @@ fn sample_pixels(input: &MotionInput<'_>, cfg: &Config, out: &mut [FrameSample])
     sample_pixels_counting::<COUNTED_ROWS>(input, cfg, out)
 }
 
-/// [`sample_pixels`], keeping the counts of the first `ROWS` rows; tests use a small
-/// `ROWS` to reach the rows counted again.
+/// [`sample_pixels`], keeping the counts of at most the first `ROWS` rows; tests use a
+/// small `ROWS` to reach the rows counted again.
 fn sample_pixels_counting<const ROWS: usize>(
     input: &MotionInput<'_>,
     cfg: &Config,
     out: &mut [FrameSample],
 ) -> usize {
-    let mut counts = [0u32; ROWS];
+    let mut counts = [0u16; ROWS];
+    // The leading rows whose counts are kept.
+    let mut counted_rows = 0;
     let mut total: u64 = 0;
     for y in 0..input.size().1 {
         if let (Some(labels), Some(depths)) = (input.labels_t.row(y), input.depth_t.row(y)) {
             let here = count_eligible(labels, depths);
             total += u64::from(here);
-            if let Some(slot) = counts.get_mut(y) {
+            if counted_rows == y
+                && let (Some(slot), Ok(here)) = (counts.get_mut(y), u16::try_from(here))
+            {
                 *slot = here;
+                counted_rows += 1;
             }
         }
     }
-    let counted = counts.get(..input.size().1).unwrap_or(&counts);
+    let counted = counts.get(..counted_rows).unwrap_or(&[]);
     let want = (out.len() as u64).min(total);
     if want == 0 {
         return 0;
@@ -1009,6 +1014,35 @@ mod tests {
         cfg.seed = 1;
         create_frames(&input, &cfg, &mut b, &mut frames).unwrap();
         assert_ne!(a, b);
+    }
+
+    #[test]
+    fn rows_with_more_eligible_pixels_than_u16_counts_are_sampled_alike() {
+        // Row 1 has 70 000 eligible pixels, rows 0 and 2 a third of that: only the count
+        // of row 0 is kept.
+        let (width, height) = (70_000, 3);
+        let labels: std::vec::Vec<u16> = (0..width * height)
+            .map(|i| u16::from((width..2 * width).contains(&i) || i % 3 == 0))
+            .collect();
+        let depth = vec![0.6f32; width * height];
+        let flow = vec![[0.0f32; 2]; width * height];
+        let input = MotionInput::new(
+            ImageView::packed(width, height, &labels).unwrap(),
+            ImageView::packed(width, height, &depth).unwrap(),
+            ImageView::packed(width, height, &depth).unwrap(),
+            ImageView::packed(width, height, &flow).unwrap(),
+            Intrinsics::new(500.0, 500.0, 100.0, 1.0).unwrap(),
+        )
+        .unwrap();
+        let mut cfg = Config::PAPER;
+        for (seed, n) in (0..4).flat_map(|seed| [1, 2, 50].map(|n| (seed, n))) {
+            cfg.seed = seed;
+            let mut kept = vec![FrameSample::EMPTY; n];
+            let mut none = vec![FrameSample::EMPTY; n];
+            assert_eq!(sample_pixels(&input, &cfg, &mut kept), n);
+            assert_eq!(sample_pixels_counting::<0>(&input, &cfg, &mut none), n);
+            assert_eq!(kept, none, "seed {seed}, {n} samples");
+        }
     }
 
     #[test]

@@ -22,7 +22,7 @@
 //!   axes (DESIGN.md §3): rotation noise times a 60 cm lever arm to the camera would swamp
 //!   the linear part of the twist.
 
-use core::hint::select_unpredictable;
+use core::{hint::select_unpredictable, ops::RangeInclusive};
 
 use nalgebra::{Point3, Vector3};
 use wide::f32x4;
@@ -299,25 +299,38 @@ pub fn compute_twists(
 /// Pixels counted at once when skipping ahead to the next sample.
 const SKIP_CHUNK_PX: usize = 64;
 
+/// Rows whose counts of eligible pixels [`sample_pixels`] keeps from its first pass (on
+/// the stack, 2 bytes a row), so that the second skips them whole; rows past these, and
+/// from the first whose count exceeds `u16`, are counted again, chunk by chunk.
+const COUNTED_ROWS: usize = 512;
+
 /// Eligible pixels (labelled, with a depth reading at `t`) among a run of a row. Counts
 /// without branches so that it vectorises; the same test as [`valid_depth`].
-fn count_eligible(labels: &[u16], depths: &[f32]) -> u64 {
+fn count_eligible(labels: &[u16], depths: &[f32]) -> u32 {
     let eligible =
         |(&label, &z): (&u16, &f32)| u32::from((label != 0) & (z > 0.0) & (z <= MAX_DEPTH_M));
-    u64::from(labels.iter().zip(depths).map(eligible).sum::<u32>())
+    labels.iter().zip(depths).map(eligible).sum::<u32>()
 }
 
 /// Calls `f(x, y, label, depth_m)` for the eligible pixel (labelled, with a depth reading
 /// at `t`) of rank `from` in row-major order, then for the one of the rank `f` returns
-/// (larger), and so on until `f` returns `None`; runs of pixels before the wanted rank are
-/// counted in bulk, not visited.
+/// (larger), and so on until `f` returns `None`; rows of which `counted` holds the count
+/// (from the top) and runs of pixels before the wanted rank are counted in bulk, not
+/// visited.
 fn for_each_eligible_from(
     input: &MotionInput<'_>,
+    counted: &[u16],
     mut from: u64,
     mut f: impl FnMut(usize, usize, u16, Real) -> Option<u64>,
 ) {
     let mut rank = 0u64;
     for y in 0..input.size().1 {
+        if let Some(&here) = counted.get(y)
+            && rank + u64::from(here) <= from
+        {
+            rank += u64::from(here);
+            continue;
+        }
         let (Some(labels), Some(depths)) = (input.labels_t.row(y), input.depth_t.row(y)) else {
             return;
         };
@@ -326,7 +339,7 @@ fn for_each_eligible_from(
             .zip(depths.chunks(SKIP_CHUNK_PX))
             .enumerate()
         {
-            let here = count_eligible(labels, depths);
+            let here = u64::from(count_eligible(labels, depths));
             if rank + here <= from {
                 rank += here;
                 continue;
@@ -350,12 +363,33 @@ fn for_each_eligible_from(
 
 /// Stratified seeded sampling; returns how many samples were written (sorted row-major).
 fn sample_pixels(input: &MotionInput<'_>, cfg: &Config, out: &mut [FrameSample]) -> usize {
+    sample_pixels_counting::<COUNTED_ROWS>(input, cfg, out)
+}
+
+/// [`sample_pixels`], keeping the counts of at most the first `ROWS` rows; tests use a
+/// small `ROWS` to reach the rows counted again.
+fn sample_pixels_counting<const ROWS: usize>(
+    input: &MotionInput<'_>,
+    cfg: &Config,
+    out: &mut [FrameSample],
+) -> usize {
+    let mut counts = [0u16; ROWS];
+    // The leading rows whose counts are kept.
+    let mut counted_rows = 0;
     let mut total: u64 = 0;
     for y in 0..input.size().1 {
         if let (Some(labels), Some(depths)) = (input.labels_t.row(y), input.depth_t.row(y)) {
-            total += count_eligible(labels, depths);
+            let here = count_eligible(labels, depths);
+            total += u64::from(here);
+            if counted_rows == y
+                && let (Some(slot), Ok(here)) = (counts.get_mut(y), u16::try_from(here))
+            {
+                *slot = here;
+                counted_rows += 1;
+            }
         }
     }
+    let counted = counts.get(..counted_rows).unwrap_or(&[]);
     let want = (out.len() as u64).min(total);
     if want == 0 {
         return 0;
@@ -372,7 +406,7 @@ fn sample_pixels(input: &MotionInput<'_>, cfg: &Config, out: &mut [FrameSample])
     let k = &input.intrinsics;
     // Called exactly at each drawn rank; returns the next one (ranks only grow: stratum
     // i+1 starts where stratum i ends).
-    for_each_eligible_from(input, first, |x, y, label, z| {
+    for_each_eligible_from(input, counted, first, |x, y, label, z| {
         if let Some(slot) = out.get_mut(taken as usize) {
             let (u, v) = (x as Real, y as Real);
             let z = local_depth(&input.depth_t, u, v, cfg).unwrap_or(z);
@@ -424,41 +458,21 @@ fn local_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, cfg: &Config) -> Op
         return Some(z_ref);
     }
     let (xc, yc) = (floor_to_i64(u + 0.5), floor_to_i64(v + 0.5));
-    // Normal equations of the plane fit, in offsets from (u, v) and from z_ref.
-    let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    let (mut sz, mut sxz, mut syz) = (0.0, 0.0, 0.0);
-    // The window clipped to the image, walked as row slices (same order as pixel by pixel).
+    let tol = cfg.depth_window_tol_m;
+    // The window clipped to the image.
     let (width, height) = depth.size();
-    let x_lo = (xc - r).max(0);
-    let x_hi = (xc + r).min(width as i64 - 1);
-    for y in (yc - r).max(0)..=(yc + r).min(height as i64 - 1) {
-        let Some(run) = depth
-            .row(y as usize)
-            .and_then(|row| row.get(x_lo as usize..=x_hi as usize))
-        else {
-            continue;
-        };
-        for (x, &z) in (x_lo..).zip(run) {
-            let Some(z) = valid_depth(z) else {
-                continue;
-            };
-            let dz = z - z_ref;
-            let same_surface = dz.abs() <= cfg.depth_window_tol_m;
-            if !same_surface {
-                continue;
-            }
-            let (dx, dy) = (x as Real - u, y as Real - v);
-            n += 1.0;
-            sx += dx;
-            sy += dy;
-            sxx += dx * dx;
-            syy += dy * dy;
-            sxy += dx * dy;
-            sz += dz;
-            sxz += dx * dz;
-            syz += dy * dz;
-        }
-    }
+    let columns = (xc - r).max(0)..=(xc + r).min(width as i64 - 1);
+    let rows = (yc - r).max(0)..=(yc + r).min(height as i64 - 1);
+    let window = (columns, rows);
+    // Rounding is monotone and NaN fails: when `z_ref` lies farther than `tol` from both
+    // limits of [`valid_depth`], every depth within `tol` of it is a reading.
+    let (sums_a, sums_b, syz) = if z_ref > tol && MAX_DEPTH_M - z_ref > tol {
+        plane_sums::<false>(depth, window, [u, v, z_ref], tol)
+    } else {
+        plane_sums::<true>(depth, window, [u, v, z_ref], tol)
+    };
+    let [n, sx, sy, sz] = sums_a.to_array();
+    let [sxx, syy, sxy, sxz] = sums_b.to_array();
     // Solve [[n sx sy] [sx sxx sxy] [sy sxy syy]] (a b c) = (sz sxz syz) for a (Cramer).
     let det = n * (sxx * syy - sxy * sxy) - sx * (sx * syy - sxy * sy) + sy * (sx * sxy - sxx * sy);
     if !(n >= 6.0 && det.abs() > 1e-3 * n * n * n) {
@@ -468,6 +482,44 @@ fn local_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, cfg: &Config) -> Op
         sz * (sxx * syy - sxy * sxy) - sx * (sxz * syy - sxy * syz) + sy * (sxz * sxy - sxx * syz);
     let a = det_a / det;
     Some(z_ref + a).filter(|z| z.is_finite() && *z > 0.0)
+}
+
+/// The sums of [`local_depth`]'s normal equations over the readings of `window`
+/// (columns, rows) within `tol` of `z_ref`, in offsets from `(u, v)` and from `z_ref`:
+/// `[n, sx, sy, sz]` and `[sxx, syy, sxy, sxz]` as lanes, and `syz`. Each lane adds its
+/// terms in pixel order, as one sum per variable would. `CHECK_READING` tests each depth
+/// with [`valid_depth`] too (needless when the tolerance implies it).
+#[inline(always)]
+fn plane_sums<const CHECK_READING: bool>(
+    depth: &ImageView<'_, f32>,
+    (columns, rows): (RangeInclusive<i64>, RangeInclusive<i64>),
+    [u, v, z_ref]: [Real; 3],
+    tol: Real,
+) -> (f32x4, f32x4, Real) {
+    let (mut sums_a, mut sums_b, mut syz) = (f32x4::ZERO, f32x4::ZERO, 0.0);
+    let (x_lo, x_hi) = (*columns.start(), *columns.end());
+    // Row slices, in the same order as pixel by pixel.
+    for y in rows {
+        let Some(run) = depth
+            .row(y as usize)
+            .and_then(|row| row.get(x_lo as usize..=x_hi as usize))
+        else {
+            continue;
+        };
+        let dy = y as Real - v;
+        for (x, &z) in (x_lo..).zip(run) {
+            let dz = z - z_ref;
+            let reading = !CHECK_READING || ((z > 0.0) & (z <= MAX_DEPTH_M));
+            if !(reading & (dz.abs() <= tol)) {
+                continue;
+            }
+            let dx = x as Real - u;
+            sums_a += f32x4::new([1.0, dx, dy, dz]);
+            sums_b += f32x4::new([dx, dy, dx, dx]) * f32x4::new([dx, dy, dy, dz]);
+            syz += dy * dz;
+        }
+    }
+    (sums_a, sums_b, syz)
 }
 
 /// Depth at a sub-pixel position from its four neighbours; `None` if any is missing, the
@@ -965,6 +1017,35 @@ mod tests {
     }
 
     #[test]
+    fn rows_with_more_eligible_pixels_than_u16_counts_are_sampled_alike() {
+        // Row 1 has 70 000 eligible pixels, rows 0 and 2 a third of that: only the count
+        // of row 0 is kept.
+        let (width, height) = (70_000, 3);
+        let labels: std::vec::Vec<u16> = (0..width * height)
+            .map(|i| u16::from((width..2 * width).contains(&i) || i % 3 == 0))
+            .collect();
+        let depth = vec![0.6f32; width * height];
+        let flow = vec![[0.0f32; 2]; width * height];
+        let input = MotionInput::new(
+            ImageView::packed(width, height, &labels).unwrap(),
+            ImageView::packed(width, height, &depth).unwrap(),
+            ImageView::packed(width, height, &depth).unwrap(),
+            ImageView::packed(width, height, &flow).unwrap(),
+            Intrinsics::new(500.0, 500.0, 100.0, 1.0).unwrap(),
+        )
+        .unwrap();
+        let mut cfg = Config::PAPER;
+        for (seed, n) in (0..4).flat_map(|seed| [1, 2, 50].map(|n| (seed, n))) {
+            cfg.seed = seed;
+            let mut kept = vec![FrameSample::EMPTY; n];
+            let mut none = vec![FrameSample::EMPTY; n];
+            assert_eq!(sample_pixels(&input, &cfg, &mut kept), n);
+            assert_eq!(sample_pixels_counting::<0>(&input, &cfg, &mut none), n);
+            assert_eq!(kept, none, "seed {seed}, {n} samples");
+        }
+    }
+
+    #[test]
     fn absurd_depths_are_no_reading_and_do_not_spoil_the_step() {
         let (mut r, _) = two_moving_boxes();
         // Every 7th pixel reads 1e38 m (a decoding error): before MAX_DEPTH_M, its share
@@ -1236,9 +1317,91 @@ mod tests {
         }
     }
 
+    /// [`local_depth`] as it was before the sums became lanes: one sum per variable, every
+    /// depth tested with [`valid_depth`].
+    fn local_depth_plain(
+        depth: &ImageView<'_, f32>,
+        u: Real,
+        v: Real,
+        cfg: &Config,
+    ) -> Option<Real> {
+        let z_ref = bilinear_depth(depth, u, v, cfg.depth_edge_m)?;
+        let r = cfg.depth_window_px as i64;
+        let (xc, yc) = (floor_to_i64(u + 0.5), floor_to_i64(v + 0.5));
+        let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut sz, mut sxz, mut syz) = (0.0, 0.0, 0.0);
+        for y in yc - r..=yc + r {
+            for x in xc - r..=xc + r {
+                let Some(z) = depth.at(x, y).and_then(valid_depth) else {
+                    continue;
+                };
+                let dz = z - z_ref;
+                if dz.abs() > cfg.depth_window_tol_m {
+                    continue;
+                }
+                let (dx, dy) = (x as Real - u, y as Real - v);
+                n += 1.0;
+                sx += dx;
+                sy += dy;
+                sxx += dx * dx;
+                syy += dy * dy;
+                sxy += dx * dy;
+                sz += dz;
+                sxz += dx * dz;
+                syz += dy * dz;
+            }
+        }
+        let det =
+            n * (sxx * syy - sxy * sxy) - sx * (sx * syy - sxy * sy) + sy * (sx * sxy - sxx * sy);
+        if !(n >= 6.0 && det.abs() > 1e-3 * n * n * n) {
+            return Some(z_ref);
+        }
+        let det_a = sz * (sxx * syy - sxy * sxy) - sx * (sxz * syy - sxy * syz)
+            + sy * (sxz * sxy - sxx * syz);
+        Some(z_ref + det_a / det).filter(|z| z.is_finite() && *z > 0.0)
+    }
+
     proptest::proptest! {
-        /// The chunk-skipping sampler draws exactly the pixels a plain scan over the list
-        /// of eligible pixels draws, for any mask, depth holes and seed.
+        /// [`local_depth`] gives the plain plane fit's depth bit for bit, for any window
+        /// radius and tolerance, near the limits of a depth reading (where the tolerance
+        /// does not imply one) and with holes and absurd readings in the window.
+        #[test]
+        fn local_depth_is_the_plain_plane_fit(
+            width in 1usize..12,
+            cells in proptest::collection::vec((0u8..8, -1.0f32..1.0), 1..144),
+            base_m in proptest::sample::select(vec![0.002f32, 0.6, 99.999]),
+            at in proptest::array::uniform2(-0.1f32..1.1),
+            radius_px in 1u32..=8,
+            tol_m in proptest::sample::select(vec![0.003f32, 0.05, 1.0]),
+        ) {
+            let height = cells.len() / width;
+            proptest::prop_assume!(height > 0);
+            let (u, v) = (at[0] * width as f32, at[1] * height as f32);
+            let depth: std::vec::Vec<f32> = cells[..width * height]
+                .iter()
+                .map(|&(kind, noise)| match kind {
+                    0 => 0.0,
+                    1 => f32::NAN,
+                    2 => 1e3,
+                    _ => base_m + noise * 0.004,
+                })
+                .collect();
+            let depth = ImageView::packed(width, height, &depth).unwrap();
+            let mut cfg = Config::PAPER;
+            cfg.depth_window_px = radius_px;
+            cfg.depth_window_tol_m = tol_m;
+            cfg.depth_edge_m = 1.0;
+            proptest::prop_assert_eq!(
+                local_depth(&depth, u, v, &cfg).map(f32::to_bits),
+                local_depth_plain(&depth, u, v, &cfg).map(f32::to_bits)
+            );
+        }
+    }
+
+    proptest::proptest! {
+        /// The row- and chunk-skipping sampler draws exactly the pixels a plain scan over
+        /// the list of eligible pixels draws, for any mask, depth holes and seed, with the
+        /// counts of every row kept or of only the first few.
         #[test]
         fn sampling_draws_the_ranks_a_plain_scan_draws(
             width in 1usize..150,
@@ -1268,6 +1431,10 @@ mod tests {
             cfg.seed = seed;
             let mut out = vec![FrameSample::EMPTY; n];
             let got = sample_pixels(&input, &cfg, &mut out);
+            // With the counts of 3 rows kept, the rows past them are counted again.
+            let mut out_3 = vec![FrameSample::EMPTY; n];
+            proptest::prop_assert_eq!(sample_pixels_counting::<3>(&input, &cfg, &mut out_3), got);
+            proptest::prop_assert_eq!(&out_3, &out);
 
             let eligible: std::vec::Vec<[u32; 2]> = (0..cells.len())
                 .filter(|&i| labels[i] != 0 && valid_depth(depth[i]).is_some())

@@ -1065,10 +1065,9 @@ fn splat(
         ) else {
             continue;
         };
-        // Most of the image is background at `t`: skip it a chunk at a time (the test
-        // vectorises).
+        // Most of the image is background at `t`: skip it a chunk at a time.
         for (c, labels) in labels.chunks(SPLAT_CHUNK).enumerate() {
-            if labels.iter().fold(0, |any, &l| any | l) == 0 {
+            if all_background(labels) {
                 continue;
             }
             let x0 = c * SPLAT_CHUNK;
@@ -1103,6 +1102,17 @@ fn splat(
 
 /// Pixels of a label row [`splat`] skips at once when all are background.
 const SPLAT_CHUNK: usize = 16;
+
+/// Whether every label of `labels` is background (branch-free on [`SPLAT_CHUNK`] labels,
+/// so it vectorises: on a slice of unknown length the same fold ran one label at a time,
+/// 0.8 M instructions a 640×480 step in callgrind).
+#[inline]
+fn all_background(labels: &[u16]) -> bool {
+    match <&[u16; SPLAT_CHUNK]>::try_from(labels) {
+        Ok(chunk) => chunk.iter().fold(0, |any, &l| any | l) == 0,
+        Err(_) => labels.iter().all(|&l| l == 0),
+    }
+}
 
 /// Pixels whose splat targets are computed side by side.
 const SPLAT_LANES: usize = 8;

@@ -824,6 +824,7 @@ fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, ke
     // A segment whose pixels all close (background, or fewer than two entries): runs of
     // it close eight pixels at once.
     let mut closed = 0u32;
+    let mut lanes = PixelBatch::EMPTY;
     for (c, (seg_chunk, source_chunk)) in segment
         .chunks(RUN_LANES)
         .zip(source.chunks(RUN_LANES))
@@ -838,21 +839,25 @@ fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, ke
         }
         // Eight pixels of one segment (most of a split segment's chunks): decided as one
         // batch of their own, lane by lane, with no bookkeeping per pixel (a lane's
-        // decision does not depend on the other lanes).
+        // decision does not depend on the other lanes). Fixed-size arrays, so the lane
+        // loops unroll without bounds checks; `lanes` is reused, as an unobserved lane's
+        // decision is dropped whatever pixel it holds.
         let seg = seg_chunk.first().copied().unwrap_or(0);
-        if seg_chunk.len() == PIXEL_LANES && all_equal(seg_chunk, seg) {
+        if seg_chunk.len() == PIXEL_LANES
+            && all_equal(seg_chunk, seg)
+            && let Ok(sources) = <&[u32; PIXEL_LANES]>::try_from(source_chunk)
+            && let Some(slots) = key
+                .get_mut(j0..j0 + PIXEL_LANES)
+                .and_then(|s| <&mut [u32; PIXEL_LANES]>::try_from(s).ok())
+        {
             let candidates = if seg == 0 { &[] } else { entries.of(seg) };
-            let Some(slots) = key.get_mut(j0..j0 + PIXEL_LANES) else {
-                continue;
-            };
             if candidates.len() < 2 {
                 slots.fill(Growth::CLOSED);
                 closed = seg;
                 continue;
             }
-            let mut lanes = PixelBatch::EMPTY;
             let mut observed = [false; PIXEL_LANES];
-            for (lane, (&s, seen)) in source_chunk.iter().zip(&mut observed).enumerate() {
+            for (lane, (&s, seen)) in sources.iter().zip(&mut observed).enumerate() {
                 if let Some((p, o)) = observe(s) {
                     lanes.set(lane, j0 + lane, p, o);
                     *seen = true;

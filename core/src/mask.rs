@@ -933,8 +933,8 @@ fn label_pixels(
             // Inside a run (one segment, one claim), eight pixels at once; the segment's
             // static label is the one its last pixel here writes.
             if all_equal(seg_chunk, run.0) && Growth::all_claim(key_chunk, run.1) {
-                out_chunk.fill(run.2);
-                key_chunk.fill(u32::from(run.2));
+                fill_run(out_chunk, run.2);
+                fill_run(key_chunk, u32::from(run.2));
                 let statics = static_row.get(x0..(x0 + seg_chunk.len()).min(static_row.len()));
                 if let (Some(slot), Some(&st)) = (
                     static_of.get_mut(run.0 as usize),
@@ -1407,6 +1407,16 @@ fn all_equal(chunk: &[u32], v: u32) -> bool {
     match <&[u32; RUN_LANES]>::try_from(chunk) {
         Ok(lanes) => lanes.iter().fold(0, |any, &x| any | (x ^ v)) == 0,
         Err(_) => chunk.iter().all(|&x| x == v),
+    }
+}
+
+/// Sets every entry of `chunk` to `v` (one store of [`RUN_LANES`] entries where it can:
+/// `fill` on a slice of unknown length stores them one at a time).
+#[inline]
+fn fill_run<T: Copy>(chunk: &mut [T], v: T) {
+    match <&mut [T; RUN_LANES]>::try_from(&mut *chunk) {
+        Ok(lanes) => *lanes = [v; RUN_LANES],
+        Err(_) => chunk.fill(v),
     }
 }
 

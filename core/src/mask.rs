@@ -833,7 +833,7 @@ fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, ke
         let j0 = c * RUN_LANES;
         if all_equal(seg_chunk, closed) {
             if let Some(slots) = key.get_mut(j0..j0 + seg_chunk.len()) {
-                slots.fill(Growth::CLOSED);
+                fill_run(slots, Growth::CLOSED);
             }
             continue;
         }
@@ -1363,7 +1363,7 @@ fn label_segments(
     for (s_chunk, k_chunk) in chunks.chain([(segment_rest, key_rest)]) {
         // Inside a run, eight pixels at once.
         if s_chunk.len() == RUN_LANES && all_equal(s_chunk, last) {
-            s_chunk.fill(id);
+            fill_run(s_chunk, id);
             run += RUN_LANES as u32;
             continue;
         }
@@ -1582,7 +1582,7 @@ fn relabel_runs(segment: &mut [u32], mut map: impl FnMut(u32) -> u32) {
     for chunk in chunks.iter_mut().map(|c| c.as_mut_slice()).chain([rest]) {
         // Inside a run, eight pixels at once.
         if chunk.len() == RUN_LANES && all_equal(chunk, last) {
-            chunk.fill(into);
+            fill_run(chunk, into);
             continue;
         }
         for s in chunk {

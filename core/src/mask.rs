@@ -55,7 +55,7 @@ use crate::{
     frames::{BodyFrame, MotionInput},
     group::GroupInfo,
     image::{MAX_DEPTH_M, valid_depth},
-    math::{Real, round},
+    math::Real,
     se3::fit_rigid_motion,
     union_find::{find, union},
 };
@@ -414,17 +414,12 @@ impl Grid {
     }
 
     /// The window pixel nearest image point `px`: `(index, packed)`, if inside the window.
+    /// (`round` each coordinate and test it against the window, as [`round_index`] does
+    /// it: in integers.)
     fn locate(&self, px: [Real; 2]) -> Option<(usize, u32)> {
-        // Exact: both terms are integers far below 2^24.
-        let (u, v) = (
-            round(px[0]) - self.x0 as Real,
-            round(px[1]) - self.y0 as Real,
-        );
-        let inside = u >= 0.0 && v >= 0.0 && u < self.width as Real && v < self.height as Real;
-        inside.then(|| {
-            let (x, y) = (u as usize, v as usize);
-            (y * self.width + x, Self::pack(x, y))
-        })
+        let x = round_index(px[0], self.x0 + self.width)?.checked_sub(self.x0)?;
+        let y = round_index(px[1], self.y0 + self.height)?.checked_sub(self.y0)?;
+        Some((y * self.width + x, Self::pack(x, y)))
     }
 }
 
@@ -1853,6 +1848,7 @@ mod tests {
     use std::{vec, vec::Vec};
 
     use super::*;
+    use crate::math::round;
 
     fn entry(segment: u32, group: u32, seeds: u32) -> SegmentSeeds {
         SegmentSeeds {
@@ -2514,6 +2510,37 @@ mod tests {
             proptest::prop_assert_eq!(bits, bits_1);
             proptest::prop_assert_eq!(source, source_1);
             proptest::prop_assert_eq!(carried, carried_1);
+        }
+    }
+
+    proptest::proptest! {
+        /// [`Grid::locate`] (in integers) finds the window pixel the float definition
+        /// finds: round each coordinate, subtract the window's origin, test the bounds.
+        #[test]
+        fn locate_is_the_rounded_pixel_in_the_window(
+            origin in (0usize..40, 0usize..40),
+            size in (0usize..10, 0usize..10),
+            offset in (-3.0f32..12.0, -3.0f32..12.0),
+            halves in (-6i32..24, -6i32..24),
+        ) {
+            let grid = Grid { x0: origin.0, y0: origin.1, width: size.0, height: size.1 };
+            // Points near the window: the sizes are small, so its edges are hit often.
+            let (ox, oy) = (origin.0 as Real, origin.1 as Real);
+            let px = (ox + offset.0, oy + offset.1);
+            let reference = |px: [Real; 2]| {
+                let (u, v) = (round(px[0]) - grid.x0 as Real, round(px[1]) - grid.y0 as Real);
+                let inside =
+                    u >= 0.0 && v >= 0.0 && u < grid.width as Real && v < grid.height as Real;
+                inside.then(|| {
+                    let (x, y) = (u as usize, v as usize);
+                    (y * grid.width + x, Grid::pack(x, y))
+                })
+            };
+            // Any point, and the ties halfway between pixels.
+            let ties = [ox + halves.0 as Real * 0.5, oy + halves.1 as Real * 0.5];
+            for p in [[px.0, px.1], ties, [ties[0], px.1], [Real::NAN, ties[1]], [1e9, 0.0]] {
+                proptest::prop_assert_eq!(grid.locate(p), reference(p), "{:?} in {:?}", p, grid);
+            }
         }
     }
 

@@ -25,7 +25,7 @@
 //! Cost: three passes over the `n(n−1)/2` pairs; the first computes distances and stores
 //! each pair's KDE bin in one byte, the other two read bins only.
 
-use wide::{f32x4, u8x16};
+use wide::{f32x4, i16x8, i32x4, i32x8, u8x16};
 
 use crate::{
     Config, Error, Twist,
@@ -180,16 +180,23 @@ pub fn group_frames(
     let floor2 = cfg.static_below_m * cfg.static_below_m;
     let moving = |t: &Twist| t.norm_squared(scale) >= floor2;
 
-    // Pass 1: bins and histograms (index 0: inside one segment, 1: across). `links`
-    // holds the moving flags until pass 2.
-    for (flag, t) in links.iter_mut().zip(twists) {
-        *flag = u32::from(moving(t));
+    // Pass 1: bins and histograms (index 0: inside one segment, 1: across). Until pass
+    // 2, `attach` holds the labels and `links` each frame's code flags across segments
+    // ([`across_flags`]).
+    for (((flags, label_slot), t), &label) in links
+        .iter_mut()
+        .zip(attach.iter_mut())
+        .zip(twists)
+        .zip(labels)
+    {
+        *flags = across_flags(moving(t));
+        *label_slot = u32::from(label);
     }
     let bin_width = cfg.kde_range_m / KDE_BINS as Real;
     let bins_per_m = 1.0 / bin_width;
     let lanes = fill_lanes(twists, &mut scratch.twist_lanes[..need.twist_lanes]);
     for (i, row) in pair_rows_mut(n, pair_bin) {
-        pair_codes(&lanes, i, (labels, links), (scale, bins_per_m), row);
+        pair_codes(&lanes, i, (attach, links), (scale, bins_per_m), row);
     }
     // Histograms (index 0: inside one segment, 1: across), counted per code first.
     let per_code = count_codes(pair_bin);
@@ -430,10 +437,26 @@ fn fill_lanes<'a>(twists: &[Twist], lanes: &'a mut [Real]) -> [&'a [Real]; TWIST
     core::array::from_fn(|c| lanes.get(c * n..(c + 1) * n).unwrap_or(&[]))
 }
 
+/// A frame's flags for [`code_of_bin`]: what its pairs across segments with a moving
+/// frame add to their bin ([`ACROSS`] if it moves, or all bits: [`NO_PAIR`]).
+fn across_flags(moving: bool) -> u32 {
+    u32::from(if moving { ACROSS } else { NO_PAIR })
+}
+
+/// The flags a row's frame adds to the [`across_flags`] of its partners: none if it
+/// moves, all bits otherwise (a static frame's pairs across segments are never data).
+fn own_flags(moving_flags: u32) -> u32 {
+    if moving_flags == u32::from(ACROSS) {
+        0
+    } else {
+        u32::from(NO_PAIR)
+    }
+}
+
 /// The pair code of a pair at twist distance `d` (metres): its KDE bin, flagged
-/// [`ACROSS`] for a pair across segments, or [`NO_PAIR`].
+/// [`ACROSS`] for a pair across segments, or [`NO_PAIR`] ([`code_of_bin`]).
 #[inline]
-fn pair_code(d: Real, bins_per_m: Real, across: bool, both_moving: bool) -> u8 {
+fn pair_code(d: Real, bins_per_m: Real, across: bool, flags: u32) -> u8 {
     // NaN fails the comparison and lands in the last bin.
     let b = d * bins_per_m;
     let b = if b < KDE_BINS as Real {
@@ -441,34 +464,35 @@ fn pair_code(d: Real, bins_per_m: Real, across: bool, both_moving: bool) -> u8 {
     } else {
         KDE_BINS as u8 - 1
     };
-    code_of_bin(b, across, both_moving)
+    code_of_bin(u32::from(b), across, flags) as u8
 }
 
-/// [`pair_code`] from the pair's bin.
+/// [`pair_code`] from the pair's bin. `flags` is the partner's [`across_flags`] or'ed
+/// with the row frame's [`own_flags`]: [`ACROSS`] when both move, [`NO_PAIR`]'s bits
+/// otherwise, which cover every bin. Across segments only pairs of moving frames are
+/// data.
 #[inline]
-fn code_of_bin(bin: u8, across: bool, both_moving: bool) -> u8 {
-    // Across segments only pairs of moving frames are data.
-    if across && !both_moving {
-        return NO_PAIR;
-    }
-    bin | if across { ACROSS } else { 0 }
+fn code_of_bin(bin: u32, across: bool, flags: u32) -> u32 {
+    bin | if across { flags } else { 0 }
 }
 
 /// The bins [`pair_code`] takes from four `d · bins_per_m`, bit for bit: truncated below
 /// [`KDE_BINS`], the last bin otherwise (NaN too).
 #[inline]
-fn four_bins(b: f32x4) -> [u8; 4] {
+fn four_bins(b: f32x4) -> i32x4 {
     let last = f32x4::splat((KDE_BINS - 1) as Real);
     // Every lane is then a whole number in `[0, KDE_BINS)` or a value in it to truncate
     // (or `-0`, which truncates to 0), so the conversion is exact and never saturates.
     let b = b.simd_lt(f32x4::splat(KDE_BINS as Real)).select(b, last);
-    b.fast_trunc_int().to_array().map(|x| x as u8)
+    b.fast_trunc_int()
 }
 
 /// The squared distances [`Twist::distance`] takes the root of, from one twist (`ti`,
 /// its components splat) to four (`tj`, component by component): the same operations in
 /// the same order, `v.norm_squared() + L·L·w.norm_squared()` with nalgebra's
-/// `(x² + y²) + z²`, one lane per pair.
+/// `(x² + y²) + z²`, one lane per pair. The differences are taken `tj − ti`, which is
+/// `−(ti − tj)` exactly (rounding is symmetric), so the squares are the same; it spares
+/// copying the splat `ti` before each subtraction.
 #[inline]
 fn four_distances_squared(
     ti: &[f32x4; TWIST_LANES],
@@ -478,12 +502,12 @@ fn four_distances_squared(
     let [tw0, tw1, tw2, tv0, tv1, tv2] = *ti;
     let [w0, w1, w2, v0, v1, v2] = tj;
     let d = [
-        tw0 - f32x4::new(*w0),
-        tw1 - f32x4::new(*w1),
-        tw2 - f32x4::new(*w2),
-        tv0 - f32x4::new(*v0),
-        tv1 - f32x4::new(*v1),
-        tv2 - f32x4::new(*v2),
+        f32x4::new(*w0) - tw0,
+        f32x4::new(*w1) - tw1,
+        f32x4::new(*w2) - tw2,
+        f32x4::new(*v0) - tv0,
+        f32x4::new(*v1) - tv1,
+        f32x4::new(*v2) - tv2,
     ];
     let w2 = (d[0] * d[0] + d[1] * d[1]) + d[2] * d[2];
     let v2 = (d[3] * d[3] + d[4] * d[4]) + d[5] * d[5];
@@ -491,44 +515,90 @@ fn four_distances_squared(
 }
 
 /// Pass 1 for frame `i`: writes the codes of its pairs with frames `i + 1..` into `row`
-/// (`n − i − 1` entries), four frames at a time. Bit for bit what [`Twist::distance`]
-/// gives pair by pair: the same operations in the same order, one lane per pair.
-fn pair_codes(
+/// (`n − i − 1` entries), sixteen frames at a time, then four, then one. Bit for bit what
+/// [`Twist::distance`] gives pair by pair: the same operations in the same order, one
+/// lane per pair. `labels` are the frames' labels and `flags` their [`across_flags`].
+fn pair_codes<'a>(
     lanes: &[&[Real]; TWIST_LANES],
     i: usize,
-    (labels, moving): (&[u16], &[u32]),
+    (labels, flags): (&'a [u32], &'a [u32]),
     (scale, bins_per_m): (Real, Real),
     row: &mut [u8],
 ) {
     let at = |c: usize| lanes.get(c).and_then(|l| l.get(i)).copied().unwrap_or(0.0);
     let ti: [Real; TWIST_LANES] = core::array::from_fn(at);
-    let (li, mi) = (
-        labels.get(i).copied().unwrap_or(0),
-        moving.get(i).copied().unwrap_or(0),
-    );
+    let li = labels.get(i).copied().unwrap_or(0);
+    let own = own_flags(flags.get(i).copied().unwrap_or(0));
     let from = i + 1;
-    let code = |d: Real, lj: u16, mj: u32| pair_code(d, bins_per_m, li != lj, (mi & mj) != 0);
     let scale2 = scale * scale;
-    let ti4 = ti.map(f32x4::splat);
-    let scale2_4 = f32x4::splat(scale2);
+    let row_frame = RowFrame {
+        twist: ti.map(f32x4::splat),
+        scale2: f32x4::splat(scale2),
+        bins_per_m: f32x4::splat(bins_per_m),
+        // Labels and flags fit `i32`: a `u16` and a byte.
+        label: i32x4::splat(li as i32),
+        flags: i32x4::splat(own as i32),
+    };
     let tail = |l: usize| lanes.get(l).and_then(|x| x.get(from..)).unwrap_or(&[]);
-    let fours: [&[[Real; 4]]; TWIST_LANES] = core::array::from_fn(|l| tail(l).as_chunks::<4>().0);
-    let (labels4, _) = labels.get(from..).unwrap_or(&[]).as_chunks::<4>();
-    let (moving4, _) = moving.get(from..).unwrap_or(&[]).as_chunks::<4>();
-    let (row4, rest) = row.as_chunks_mut::<4>();
-    let done = row4.len() * 4;
+    let labels = labels.get(from..).unwrap_or(&[]);
+    let flags = flags.get(from..).unwrap_or(&[]);
+    // Sixteen frames at a time: each lane, the labels and the flags in chunks of 16.
+    let (row16, rest16) = row.as_chunks_mut::<16>();
+    let done16 = row16.len() * 16;
+    let sixteens: [&[[Real; 16]]; TWIST_LANES] =
+        core::array::from_fn(|l| tail(l).as_chunks::<16>().0);
+    let [w0, w1, w2, v0, v1, v2] = sixteens;
+    let tj16 = w0.iter().zip(w1).zip(w2).zip(v0).zip(v1).zip(v2);
+    let meta16 = labels
+        .as_chunks::<16>()
+        .0
+        .iter()
+        .zip(flags.as_chunks::<16>().0);
+    for ((out, (lj, fj)), tj) in row16.iter_mut().zip(meta16).zip(tj16) {
+        let (((((w0, w1), w2), v0), v1), v2) = tj;
+        let (Some(w0), Some(w1), Some(w2), Some(v0), Some(v1), Some(v2), Some(lj), Some(fj)) = (
+            quarters(w0),
+            quarters(w1),
+            quarters(w2),
+            quarters(v0),
+            quarters(v1),
+            quarters(v2),
+            quarters(lj),
+            quarters(fj),
+        ) else {
+            return;
+        };
+        let quarter = |k: usize| {
+            row_frame.four_codes(
+                [&w0[k], &w1[k], &w2[k], &v0[k], &v1[k], &v2[k]],
+                &lj[k],
+                &fj[k],
+            )
+        };
+        // Codes are bytes, so the saturating narrowings are exact.
+        let pack = |a: i32x4, b: i32x4| {
+            let (a, b) = (a.to_array(), b.to_array());
+            i16x8::from_i32x8_saturate(i32x8::new(core::array::from_fn(|k| {
+                if k < 4 { a[k] } else { b[k - 4] }
+            })))
+        };
+        *out = u8x16::narrow_i16x8(pack(quarter(0), quarter(1)), pack(quarter(2), quarter(3)))
+            .to_array();
+    }
+    // Then four at a time.
+    let (row4, rest) = rest16.as_chunks_mut::<4>();
+    let fours: [&[[Real; 4]]; TWIST_LANES] =
+        core::array::from_fn(|l| tail(l).get(done16..).unwrap_or(&[]).as_chunks::<4>().0);
     let [w0, w1, w2, v0, v1, v2] = fours;
     let tj4 = w0.iter().zip(w1).zip(w2).zip(v0).zip(v1).zip(v2);
-    let bins_per_m4 = f32x4::splat(bins_per_m);
-    for (((out, lj), mj), tj) in row4.iter_mut().zip(labels4).zip(moving4).zip(tj4) {
+    let after16 = |x: &'a [u32]| x.get(done16..).unwrap_or(&[]).as_chunks::<4>().0;
+    let meta4 = after16(labels).iter().zip(after16(flags));
+    for ((out, (lj, fj)), tj) in row4.iter_mut().zip(meta4).zip(tj4) {
         let (((((w0, w1), w2), v0), v1), v2) = tj;
-        let tj = [w0, w1, w2, v0, v1, v2];
-        let norm2 = four_distances_squared(&ti4, tj, scale2_4);
-        let bins = four_bins(sqrt4(f32x4::new(norm2)) * bins_per_m4);
-        for k in 0..4 {
-            out[k] = code_of_bin(bins[k], li != lj[k], (mi & mj[k]) != 0);
-        }
+        let codes = row_frame.four_codes([w0, w1, w2, v0, v1, v2], lj, fj);
+        *out = codes.to_array().map(|c| c as u8);
     }
+    let done = done16 + row4.len() * 4;
     for (k, slot) in rest.iter_mut().enumerate() {
         let j = from + done + k;
         let tj: [Real; TWIST_LANES] =
@@ -536,11 +606,45 @@ fn pair_codes(
         let d: [Real; TWIST_LANES] = core::array::from_fn(|l| ti[l] - tj[l]);
         let w2 = (d[0] * d[0] + d[1] * d[1]) + d[2] * d[2];
         let v2 = (d[3] * d[3] + d[4] * d[4]) + d[5] * d[5];
-        let (lj, mj) = (
-            labels.get(j).copied().unwrap_or(0),
-            moving.get(j).copied().unwrap_or(0),
+        let (lj, fj) = (
+            labels.get(done + k).copied().unwrap_or(0),
+            flags.get(done + k).copied().unwrap_or(0),
         );
-        *slot = code(sqrt(v2 + scale2 * w2), lj, mj);
+        *slot = pair_code(sqrt(v2 + scale2 * w2), bins_per_m, li != lj, fj | own);
+    }
+}
+
+/// Sixteen values as four fours (never `None`).
+#[inline]
+fn quarters<T>(x: &[T; 16]) -> Option<&[[T; 4]; 4]> {
+    x.as_chunks::<4>().0.first_chunk::<4>()
+}
+
+/// The frame of a pass-1 row, splat for [`RowFrame::four_codes`].
+struct RowFrame {
+    twist: [f32x4; TWIST_LANES],
+    scale2: f32x4,
+    bins_per_m: f32x4,
+    label: i32x4,
+    /// Its [`own_flags`].
+    flags: i32x4,
+}
+
+impl RowFrame {
+    /// The codes of its pairs with four frames (twists component by component, labels,
+    /// [`across_flags`]): [`code_of_bin`] of [`four_bins`], one lane per pair.
+    #[inline]
+    fn four_codes(
+        &self,
+        tj: [&[Real; 4]; TWIST_LANES],
+        labels: &[u32; 4],
+        flags: &[u32; 4],
+    ) -> i32x4 {
+        let lanes_of = |x: &[u32; 4]| i32x4::new(x.map(|x| x as i32));
+        let norm2 = four_distances_squared(&self.twist, tj, self.scale2);
+        let bins = four_bins(sqrt4(f32x4::new(norm2)) * self.bins_per_m);
+        let inside = lanes_of(labels).simd_eq(self.label);
+        bins | (!inside & (lanes_of(flags) | self.flags))
     }
 }
 
@@ -1256,22 +1360,24 @@ mod tests {
                 .collect();
             let labels: Vec<u16> = frames.iter().map(|f| f.1).collect();
             let floor2 = Config::PAPER.static_below_m * Config::PAPER.static_below_m;
-            let moving: Vec<u32> = twists
+            let moving: Vec<bool> = twists
                 .iter()
-                .map(|t| u32::from(t.norm_squared(scale) >= floor2))
+                .map(|t| t.norm_squared(scale) >= floor2)
                 .collect();
+            let flags: Vec<u32> = moving.iter().map(|&m| across_flags(m)).collect();
+            let labels32: Vec<u32> = labels.iter().map(|&l| u32::from(l)).collect();
             let bins_per_m = KDE_BINS as Real / Config::PAPER.kde_range_m;
             let mut lanes_buf = vec![0.0; TWIST_LANES * n];
             let lanes = fill_lanes(&twists, &mut lanes_buf);
             let mut pair_bin = vec![0u8; GroupScratchLen::for_frames(n).pair_bin];
             for (i, row) in pair_rows_mut(n, &mut pair_bin) {
-                pair_codes(&lanes, i, (&labels, &moving), (scale, bins_per_m), row);
+                pair_codes(&lanes, i, (&labels32, &flags), (scale, bins_per_m), row);
             }
             let mut expected = Vec::new();
             for i in 0..n {
                 for j in i + 1..n {
                     let across = labels[i] != labels[j];
-                    expected.push(if across && (moving[i] & moving[j]) == 0 {
+                    expected.push(if across && !(moving[i] && moving[j]) {
                         NO_PAIR
                     } else {
                         let b = twists[i].distance(&twists[j], scale) * bins_per_m;

@@ -70,7 +70,8 @@ pub const NEIGHBOURS: usize = 4;
 /// Neighbours a frame's miss is averaged with before the first split.
 const SMOOTH_NEIGHBOURS: usize = 8;
 /// Entries of [`split_mixed_groups`]' `misses` scratch per frame: a frame's miss and its
-/// smoothed miss, three components each.
+/// smoothed miss, three components each (in the alternation the raw half holds, one
+/// entry per frame, each member's mean point miss under its part's motion).
 pub const MISS_SCRATCH_PER_FRAME: usize = 6;
 
 /// Splits the groups `groups[..count]` of `frames` (module docs), appending new groups
@@ -312,9 +313,14 @@ fn split_one(
             if !is_member(i) {
                 continue;
             }
-            let best = u32::from(frame_miss(&fits.1, f) < frame_miss(&fits.0, f));
+            let (miss0, miss1) = (frame_miss(&fits.0, f), frame_miss(&fits.1, f));
+            let best = u32::from(miss1 < miss0);
             changed |= best != *s;
             *s = best;
+            // Free since the smoothing: the miss of the frame's part, for the split's mean.
+            if let Some(m) = raw.get_mut(i) {
+                *m = if best == 1 { miss1 } else { miss0 };
+            }
         }
         if !changed {
             break;
@@ -327,10 +333,10 @@ fn split_one(
             continue;
         }
         let k = usize::from(s == 1);
-        let m = if s == 1 { &fits.1 } else { &fits.0 };
         sizes[k] += 1;
         centroid[k] += f.p_t.iter().fold(Vector3::zeros(), |acc, p| acc + p.coords) / 3.0;
-        split_miss += frame_miss(m, f);
+        // The last round's fits are the final ones, and so are its misses.
+        split_miss += raw.get(i).copied().unwrap_or(Real::INFINITY);
     }
     if sizes[0] < min_part || sizes[1] < min_part {
         return None;

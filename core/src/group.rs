@@ -54,7 +54,8 @@ const _: () = assert!((KDE_BINS as u8 - 1) | ACROSS < NO_PAIR && KDE_BINS < 0x80
 pub struct GroupInfo {
     /// Frames in the group.
     pub frames: u32,
-    /// Spatial twist of the group's mode frame (space frame of the step).
+    /// Spatial twist of the group's root frame (its smallest frame index; space frame of
+    /// the step).
     pub twist: Twist,
     /// Whether the twist is above the noise floor.
     pub moving: bool,
@@ -847,7 +848,8 @@ fn attach_up(
     }
 }
 
-/// Dense group ids in root order, small groups dropped, then counts and mean twists.
+/// Dense group ids in root order, small groups dropped, then counts and each group's
+/// root twist.
 fn finish_groups(
     twists: &[Twist],
     labels: &[u16],
@@ -875,8 +877,10 @@ fn finish_groups(
             *slot = NONE;
         }
     }
-    // A group's twist is its root's: the quick-shift mode, the most typical member, which
-    // a few corrupted members cannot pull away as they would pull a mean.
+    // A group's twist is its root's: one member's twist, which a few corrupted members
+    // cannot pull away as they would pull a mean. The root is the union-find root, the
+    // member with the smallest frame index (not the quick-shift mode: on exact twists the
+    // two agree, under noise they can differ by a few millimetres).
     for (i, (&r, fg)) in root_of.iter().zip(frame_group.iter_mut()).enumerate() {
         let gid = if r == NONE {
             NONE

@@ -438,6 +438,14 @@ fn fill_lanes<'a>(twists: &[Twist], lanes: &'a mut [Real]) -> [&'a [Real]; TWIST
     core::array::from_fn(|c| lanes.get(c * n..(c + 1) * n).unwrap_or(&[]))
 }
 
+/// Whether [`pair_codes`] codes sixteen pairs at a time: only where `wide` has vector
+/// lanes to pack the codes with.
+const SIXTEEN_PAIR_CODES: bool = cfg!(any(
+    target_feature = "sse2",
+    target_feature = "simd128",
+    target_feature = "neon"
+));
+
 /// A frame's flags for [`code_of_bin`]: what its pairs across segments with a moving
 /// frame add to their bin ([`ACROSS`] if it moves, or all bits: [`NO_PAIR`]).
 fn across_flags(moving: bool) -> u32 {
@@ -544,7 +552,13 @@ fn pair_codes<'a>(
     let labels = labels.get(from..).unwrap_or(&[]);
     let flags = flags.get(from..).unwrap_or(&[]);
     // Sixteen frames at a time: each lane, the labels and the flags in chunks of 16.
-    let (row16, rest16) = row.as_chunks_mut::<16>();
+    // Without vector lanes (Cortex-M: `wide`'s narrowings are scalar) the four-pair path
+    // costs less, so there every pair goes through it.
+    let (row16, rest16) = if SIXTEEN_PAIR_CODES {
+        row.as_chunks_mut::<16>()
+    } else {
+        (Default::default(), row)
+    };
     let done16 = row16.len() * 16;
     let sixteens: [&[[Real; 16]]; TWIST_LANES] =
         core::array::from_fn(|l| tail(l).as_chunks::<16>().0);

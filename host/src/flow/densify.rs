@@ -19,6 +19,7 @@ use crate::par::*;
 
 /// Dense `w x h` flow from the patch flows of one level (`patches` row-major over the
 /// grid, which covers every pixel); `outlier_per_grey` is the weight's `κ`.
+#[allow(clippy::too_many_arguments)] // the level's inputs, its pools and one setting
 pub(crate) fn densify(
     t: &Template<'_>,
     i1: &Padded,
@@ -27,11 +28,13 @@ pub(crate) fn densify(
     h: usize,
     outlier_per_grey: f32,
     pool: &Pool,
+    flows: &Pool<[f32; 2]>,
 ) -> Lent<[f32; 2]> {
-    with_patch_size!(grid.size, N => densify_n::<N>(t, i1, patches, grid, h, outlier_per_grey, pool))
+    with_patch_size!(grid.size, N => densify_n::<N>(t, i1, patches, grid, h, outlier_per_grey, pool, flows))
 }
 
 /// [`densify`] for patches of side `N` (`grid.size`).
+#[allow(clippy::too_many_arguments)] // densify's arguments, passed through
 fn densify_n<const N: usize>(
     t: &Template<'_>,
     i1: &Padded,
@@ -40,6 +43,7 @@ fn densify_n<const N: usize>(
     h: usize,
     outlier_per_grey: f32,
     pool: &Pool,
+    flows: &Pool<[f32; 2]>,
 ) -> Lent<[f32; 2]> {
     let (xs, ys, size) = (grid.xs, grid.ys, N);
     let w = t.w;
@@ -94,7 +98,7 @@ fn densify_n<const N: usize>(
                 }
             }
         });
-    let mut flow = pool.scratch_pairs(w * h);
+    let mut flow = flows.scratch(w * h);
     flow.par_chunks_mut(w)
         .zip(sums.par_chunks(3 * w))
         .for_each(|(out, chunk)| {

@@ -285,6 +285,7 @@ pub struct DisFlow {
     pool: Option<Arc<rayon::ThreadPool>>,
     /// Buffers kept between calls (shared by clones).
     buffers: Arc<Pool>,
+    flows: Arc<Pool<[f32; 2]>>,
 }
 
 impl DisFlow {
@@ -299,6 +300,7 @@ impl DisFlow {
             #[cfg(feature = "threads")]
             pool: None,
             buffers: Arc::default(),
+            flows: Arc::default(),
         })
     }
 
@@ -442,10 +444,10 @@ impl DisFlow {
         let (finest, coarsest) = self.levels(w, h);
         let polish = finest > 0 && (prm.polish_gd_iters > 0 || prm.polish_variational_iters > 0);
         let pool = &*self.buffers;
-        // Room for a full-resolution flow (two planes) in every fresh buffer: those made at
-        // the coarse levels serve the finer ones again (one-shot: 4776 -> 3951 page faults),
-        // and the full-resolution flow takes pages the planes have faulted in.
-        pool.reserve_room(2 * w * h);
+        // Room for a full-resolution plane in every fresh buffer: those made at the coarse
+        // levels serve the finer ones again (one-shot: 4776 -> 3951 page faults).
+        pool.reserve_room(w * h);
+        self.flows.reserve_room(w * h);
         // A step at full resolution (a level there, a polish, the motion-boundary
         // selection) needs RGB input's luma there: made once, and level 1 is downsampled
         // from it (the values `downsample_luma` gives, bit for bit).
@@ -492,11 +494,11 @@ impl DisFlow {
         {
             let l = l + 1;
             let next = if l == coarsest {
-                pool.zeroed_pairs(a.w * a.h)
+                self.flows.zeroed(a.w * a.h)
             } else {
-                upsample_flow(&flow, fw, fh, a.w, a.h, 2, pool)
+                upsample_flow(&flow, fw, fh, a.w, a.h, 2, &self.flows)
             };
-            pool.put_pairs(core::mem::replace(&mut flow, next));
+            self.flows.put(core::mem::replace(&mut flow, next));
             (fw, fh, fl) = (a.w, a.h, l);
             self.level(
                 &a.data,
@@ -510,11 +512,11 @@ impl DisFlow {
         // Up to full resolution, where a last level runs when the estimate goes down to
         // level 0 or polishes.
         let full = if fl == 0 {
-            pool.zeroed_pairs(w * h)
+            self.flows.zeroed(w * h)
         } else {
-            upsample_flow(&flow, fw, fh, w, h, 1 << fl, pool)
+            upsample_flow(&flow, fw, fh, w, h, 1 << fl, &self.flows)
         };
-        pool.put_pairs(core::mem::replace(&mut flow, full));
+        self.flows.put(core::mem::replace(&mut flow, full));
         let full_step = if finest == 0 {
             Some(self.level_step(0, coarsest, hint_px))
         } else {
@@ -598,8 +600,9 @@ impl DisFlow {
             h,
             prm.densify_outlier_per_grey,
             pool,
+            &self.flows,
         );
-        pool.put_pairs(core::mem::replace(flow, dense));
+        self.flows.put(core::mem::replace(flow, dense));
         // The refinement reads the unpadded image: its buffers may reuse this one.
         pool.put(i1p.data);
         if step.variational_iters > 0 {

@@ -2,11 +2,8 @@
 //! the operating system and fault in page by page on every call; at this image size that
 //! costs about as much as the arithmetic, so the estimator keeps its buffers between calls.
 //! Within a call (the first one above all, in a one-shot `riseg flow`), buffers made with
-//! room for a full-resolution flow field ([`Pool::reserve_room`]) serve every pyramid
-//! level, so only the pages of the largest use of each buffer are ever faulted in. Flow
-//! fields (pairs of `f32`) are lent from the same buffers as planes
-//! ([`Pool::zeroed_pairs`]), so that a field takes pages a plane has already faulted in,
-//! and back.
+//! room for a full-resolution plane ([`Pool::reserve_room`]) serve every pyramid level, so
+//! only the pages of the largest use of each buffer are ever faulted in.
 //!
 //! A buffer is lent as a [`Lent`]: the values in use at the front of a buffer that keeps
 //! its whole length, so that lending it again for more values writes nothing (a `Vec`
@@ -54,36 +51,6 @@ impl<T> Lent<T> {
     pub fn into_vec(mut self) -> Vec<T> {
         self.buf.truncate(self.len);
         self.buf
-    }
-}
-
-impl Lent<f32> {
-    /// This loan as pairs of values: a buffer of even length (as every [`Pool::fresh`]
-    /// one is) holds half as many pairs; one of odd length is given up for a fresh one.
-    fn into_pairs(self) -> Lent<[f32; 2]> {
-        match bytemuck::allocation::try_cast_vec(self.buf) {
-            Ok(buf) => Lent {
-                buf,
-                len: self.len / 2,
-                written: self.written.div_ceil(2),
-            },
-            Err(_) => Lent {
-                buf: vec![[0.0; 2]; self.len / 2],
-                len: self.len / 2,
-                written: self.len / 2,
-            },
-        }
-    }
-}
-
-impl Lent<[f32; 2]> {
-    /// The pairs' buffer as plain values ([`Lent::into_pairs`] undone).
-    fn into_values(self) -> Lent<f32> {
-        Lent {
-            buf: bytemuck::allocation::cast_vec(self.buf),
-            len: 2 * self.len,
-            written: 2 * self.written,
-        }
     }
 }
 
@@ -154,13 +121,11 @@ impl<T: Copy + Default> Pool<T> {
         }
     }
 
-    /// A fresh buffer of `len` zeros with at least the reserved room, of even length (it
-    /// can hold pairs, [`Pool::zeroed_pairs`]).
+    /// A fresh buffer of `len` zeros with at least the reserved room.
     fn fresh(&self, len: usize) -> Lent<T> {
-        let room = len.max(self.room.load(Ordering::Relaxed));
         Lent {
             // All zeros: the allocator hands out fresh zeroed pages without writing them.
-            buf: vec![T::default(); room.next_multiple_of(2)],
+            buf: vec![T::default(); len.max(self.room.load(Ordering::Relaxed))],
             len,
             written: len,
         }
@@ -200,23 +165,6 @@ impl<T: Copy + Default> Pool<T> {
         if free.len() < KEEP {
             free.push(v);
         }
-    }
-}
-
-impl Pool<f32> {
-    /// [`Pool::zeroed`] for `len` pairs, from the buffers of the values.
-    pub fn zeroed_pairs(&self, len: usize) -> Lent<[f32; 2]> {
-        self.zeroed(2 * len).into_pairs()
-    }
-
-    /// [`Pool::scratch`] for `len` pairs, from the buffers of the values.
-    pub fn scratch_pairs(&self, len: usize) -> Lent<[f32; 2]> {
-        self.scratch(2 * len).into_pairs()
-    }
-
-    /// [`Pool::put`] for a buffer lent as pairs.
-    pub fn put_pairs(&self, v: Lent<[f32; 2]>) {
-        self.put(v.into_values());
     }
 }
 
@@ -272,31 +220,6 @@ mod tests {
         let free = pool.free.lock().unwrap_or_else(PoisonError::into_inner);
         let rooms: Vec<usize> = free.iter().map(|v| v.buf.len()).collect();
         assert_eq!(rooms, [10], "only the buffer with room is kept");
-    }
-
-    #[test]
-    fn pairs_and_values_share_buffers() {
-        let pool: Pool = Pool::default();
-        pool.reserve_room(7); // fresh buffers are even: 8 values
-        let mut values = pool.scratch(5);
-        values.fill(3.0);
-        let at = values.as_ptr();
-        pool.put(values);
-        let pairs = pool.zeroed_pairs(4);
-        assert_eq!(
-            pairs.as_ptr().cast::<f32>(),
-            at,
-            "the values' buffer lent as pairs"
-        );
-        assert_eq!(&*pairs, &[[0.0; 2]; 4]);
-        let mut pairs = pairs;
-        pairs[3] = [1.0, 2.0];
-        pool.put_pairs(pairs);
-        let values = pool.scratch(8);
-        assert_eq!(values.as_ptr(), at, "and back");
-        assert_eq!(&values[6..], &[1.0, 2.0]);
-        pool.put(values);
-        assert_eq!(pool.scratch_pairs(3).len(), 3);
     }
 
     #[test]

@@ -201,9 +201,9 @@ pub(crate) fn upsample_flow(
     dst_w: usize,
     dst_h: usize,
     scale: usize,
-    pool: &Pool,
+    pool: &Pool<[f32; 2]>,
 ) -> Lent<[f32; 2]> {
-    let mut dst = pool.scratch_pairs(dst_w * dst_h);
+    let mut dst = pool.scratch(dst_w * dst_h);
     if src_w == 0 || src_h == 0 || dst_w == 0 {
         dst.fill([0.0; 2]);
         return dst;

@@ -593,7 +593,7 @@ impl DisFlow {
             size: p,
         };
         let dense = densify(
-            &t,
+            (i0, w),
             &i1p,
             &patches,
             &grid,
@@ -605,32 +605,28 @@ impl DisFlow {
         self.flows.put(core::mem::replace(flow, dense));
         // The refinement reads the unpadded image: its buffers may reuse this one.
         pool.put(i1p.data);
-        if step.variational_iters > 0 {
-            let (gx1, gy1) = gradients(i1, w, h, pool);
-            let second = Warpable::new(i1, &gx1, &gy1, (w, h), pool);
-            pool.put(gx1);
-            pool.put(gy1);
-            let inp = RefineInput {
-                w,
-                h,
-                i0,
-                gx0: &gx0,
-                gy0: &gy0,
-                second: &second,
-            };
-            let settings = RefineSettings {
-                fixed_point_iters: step.variational_iters,
-                sor_iters: prm.sor_iters,
-                sor_omega: prm.sor_omega,
-                alpha: prm.smoothness,
-                delta: prm.data_weight,
-                edge_grey: prm.smoothness_edge_grey,
-            };
-            refine(&inp, flow, &settings, pool);
-            second.recycle(pool);
+        if step.variational_iters == 0 {
+            pool.put(gx0);
+            pool.put(gy0);
+            return;
         }
-        pool.put(gx0);
-        pool.put(gy0);
+        let inp = RefineInput {
+            w,
+            h,
+            i0,
+            gx0,
+            gy0,
+            second: Warpable::new(i1, (w, h), pool),
+        };
+        let settings = RefineSettings {
+            fixed_point_iters: step.variational_iters,
+            sor_iters: prm.sor_iters,
+            sor_omega: prm.sor_omega,
+            alpha: prm.smoothness,
+            delta: prm.data_weight,
+            edge_grey: prm.smoothness_edge_grey,
+        };
+        refine(inp, flow, &settings, pool);
     }
 }
 

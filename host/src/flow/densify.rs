@@ -10,7 +10,7 @@
 
 use super::pool::{Lent, Pool};
 use super::pyramid::{Padded, Tap};
-use super::search::{Grid, LANES, PatchFlow, lanes, lanes_mut, with_patch_size};
+use super::search::{Grid, LANES, PatchFlow, lanes, lanes_mut, refill, with_patch_size};
 use wide::f32x4;
 
 /// One in every lane.
@@ -19,8 +19,9 @@ use crate::par::*;
 
 /// Dense `w x h` flow from the patch flows of one level (`patches` row-major over the
 /// grid, which covers every pixel), `first` the level's first image and its width;
-/// `outlier_per_grey` is the weight's `κ`.
-#[allow(clippy::too_many_arguments)] // the level's inputs, its pools and one setting
+/// `outlier_per_grey` is the weight's `κ`. `taps` is scratch (garbage after the call),
+/// kept by the caller between calls.
+#[allow(clippy::too_many_arguments)] // the level's inputs, its pools, scratch and one setting
 pub(crate) fn densify(
     first: (&[f32], usize),
     i1: &Padded,
@@ -30,8 +31,9 @@ pub(crate) fn densify(
     outlier_per_grey: f32,
     pool: &Pool,
     flows: &Pool<[f32; 2]>,
+    taps: &mut Vec<Tap>,
 ) -> Lent<[f32; 2]> {
-    with_patch_size!(grid.size, N => densify_n::<N>(first, i1, patches, grid, h, outlier_per_grey, pool, flows))
+    with_patch_size!(grid.size, N => densify_n::<N>(first, i1, patches, grid, h, outlier_per_grey, pool, flows, taps))
 }
 
 /// [`densify`] for patches of side `N` (`grid.size`).
@@ -45,16 +47,20 @@ fn densify_n<const N: usize>(
     outlier_per_grey: f32,
     pool: &Pool,
     flows: &Pool<[f32; 2]>,
+    taps: &mut Vec<Tap>,
 ) -> Lent<[f32; 2]> {
     let (xs, ys, size) = (grid.xs, grid.ys, N);
     // Sums of weight, weight·u and weight·v in separate planes (element-wise loops).
     // Each patch's bilinear taps, computed once (every row of the patch reuses them).
-    let taps: Vec<Tap> = ys
-        .iter()
-        .flat_map(|&py| xs.iter().map(move |&px| (px, py)))
-        .zip(patches)
-        .map(|((px, py), p)| i1.tap(px as f32 + p.u, py as f32 + p.v, size))
-        .collect();
+    refill(
+        taps,
+        patches.len(),
+        ys.iter()
+            .flat_map(|&py| xs.iter().map(move |&px| (px, py)))
+            .zip(patches)
+            .map(|((px, py), p)| i1.tap(px as f32 + p.u, py as f32 + p.v, size)),
+    );
+    let taps = &*taps;
     let kappa = f32x4::splat(outlier_per_grey);
     let mut sums = pool.zeroed(3 * w * h);
     sums.par_chunks_mut(3 * w)

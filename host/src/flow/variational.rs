@@ -106,15 +106,18 @@ impl Warpable {
                 let up = &i1[y.saturating_sub(1) * w..][..w];
                 let down = &i1[(y + 1).min(h - 1) * w..][..w];
                 // As `gradients`: half the central difference, one-sided at the ends.
-                for (((o, &a), &u), &d) in out.iter_mut().zip(row).zip(up).zip(down) {
-                    *o = [a, 0.0, 0.5 * (d - u)];
-                }
+                let at = |x: usize, left: usize, right: usize| {
+                    [row[x], 0.5 * (row[right] - row[left]), 0.5 * (down[x] - up[x])]
+                };
                 if w >= 2 {
-                    out[0][1] = 0.5 * (row[1] - row[0]);
-                    out[w - 1][1] = 0.5 * (row[w - 1] - row[w - 2]);
-                    for (o, three) in out[1..w - 1].iter_mut().zip(row.windows(3)) {
-                        o[1] = 0.5 * (three[2] - three[0]);
+                    out[0] = at(0, 0, 1);
+                    out[w - 1] = at(w - 1, w - 2, w - 1);
+                    let inner = out[1..w - 1].iter_mut().zip(row.windows(3));
+                    for ((o, three), (&u, &d)) in inner.zip(up[1..].iter().zip(&down[1..])) {
+                        *o = [three[1], 0.5 * (three[2] - three[0]), 0.5 * (d - u)];
                     }
+                } else {
+                    out[0] = [row[0], 0.0, 0.5 * (down[0] - up[0])];
                 }
                 out[w] = out[w - 1];
             });
@@ -207,6 +210,12 @@ impl Planes {
         &self.row(yy, j)[start..][..n]
     }
 
+    /// The chunks of image rows `0..h` (guard rows excluded), in parallel, to read.
+    fn rows(&self, h: usize) -> crate::par::Chunks<'_, f32> {
+        let c = self.n * self.ps;
+        self.data[c..(h + 1) * c].par_chunks(c)
+    }
+
     /// The chunks of image rows `0..h` (guard rows excluded), in parallel.
     fn rows_mut(&mut self, h: usize) -> crate::par::ChunksMut<'_, f32> {
         let c = self.n * self.ps;
@@ -234,8 +243,10 @@ pub(crate) fn refine(
     // weight planes, so those start zeroed; the system is only read where written. The
     // weights are made after the last warp has given its inputs back.
     let mut uv = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
-    let mut duv = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
     let mut sys = [Planes::scratch(&sp, 5, pool), Planes::scratch(&sp, 5, pool)];
+    // Made after the first warp: the increment is zero until the first solve (and
+    // `scatter` adds that zero to the flow).
+    let mut duv: Option<[Planes; 2]> = None;
     let mut wts: Option<[Planes; 2]> = None;
     for (c, uvc) in uv.iter_mut().enumerate() {
         scatter(&sp, c, flow, uvc);
@@ -249,14 +260,14 @@ pub(crate) fn refine(
     });
     let mut warp_input = Some(inp);
     for iter in 0..s.fixed_point_iters {
+        if let Some(duv) = &mut duv {
+            for (uvc, dc) in uv.iter_mut().zip(duv.iter_mut()) {
+                absorb(uvc, dc);
+            }
+        }
         if let Some(inp) = &warp_input {
-            for (c, ((uvc, dc), sc)) in uv
-                .iter_mut()
-                .zip(duv.iter_mut())
-                .zip(sys.iter_mut())
-                .enumerate()
-            {
-                warp(&sp, c, inp, uvc, dc, sc);
+            for (c, (uvc, sc)) in uv.iter().zip(sys.iter_mut()).enumerate() {
+                warp(&sp, c, inp, uvc, sc);
             }
         }
         if iter + 1 == s.fixed_point_iters
@@ -264,9 +275,10 @@ pub(crate) fn refine(
         {
             inp.recycle(pool);
         }
+        let duv = duv.get_or_insert_with(|| [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)]);
         let wts = wts.get_or_insert_with(|| [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)]);
         for (c, wc) in wts.iter_mut().enumerate() {
-            smoothness(&sp, c, &uv, &duv, wc, s.alpha);
+            smoothness(&sp, c, &uv, duv, wc, s.alpha);
             if let Some(e) = &edges {
                 apply_edges(&sp, &e[c], wc);
             }
@@ -276,14 +288,17 @@ pub(crate) fn refine(
         }
         for _ in 0..s.sor_iters {
             for (c, sc) in sys.iter().enumerate() {
-                let [d0, d1] = &mut duv;
+                let [d0, d1] = &mut *duv;
                 let (mine, other) = if c == 0 { (d0, &*d1) } else { (d1, &*d0) };
                 sor_half_sweep(&sp, c, sc, wts, mine, other, s.sor_omega);
             }
         }
     }
-    gather(&sp, &uv, &duv, flow);
-    for p in [uv, duv, sys].into_iter().chain(wts).flatten() {
+    // Made in the first iteration: `fixed_point_iters > 0`.
+    if let Some(duv) = &duv {
+        gather(&sp, &uv, duv, flow);
+    }
+    for p in [Some(uv), duv, Some(sys), wts].into_iter().flatten().flatten() {
         pool.put(p.data);
     }
     for p in edges.into_iter().flatten() {
@@ -328,7 +343,8 @@ fn apply_edges(sp: &Split, edges: &Planes, wts: &mut Planes) {
         });
 }
 
-/// Row-major flow into colour `c`'s `(u, v)` planes.
+/// Row-major flow into colour `c`'s `(u, v)` planes, plus the zero increment (`u + 0`, as
+/// [`absorb`] adds an increment: a flow of `-0` becomes `+0`).
 fn scatter(sp: &Split, c: usize, flow: &[[f32; 2]], uv: &mut Planes) {
     let ps = sp.ps;
     uv.rows_mut(sp.h).enumerate().for_each(|(y, chunk)| {
@@ -338,21 +354,33 @@ fn scatter(sp: &Split, c: usize, flow: &[[f32; 2]], uv: &mut Planes) {
         let src = &flow[y * sp.w..][..sp.w];
         for k in 0..n {
             let f = src[2 * k + s];
-            ur[k + 1] = f[0];
-            vr[k + 1] = f[1];
+            ur[k + 1] = f[0] + 0.0;
+            vr[k + 1] = f[1] + 0.0;
         }
     });
 }
 
-/// Moves colour `c`'s increment into its flow (`u += du`, `du = 0`) and warps the second
-/// image by the result: `Iz = I1(x + u) − I0(x)`, `Ix`, `Iy` averaged over both images,
-/// into the first three planes of `deriv`.
+/// Moves an increment into its flow (`u += du`, `du = 0`), guards included (both stay 0
+/// there).
+fn absorb(uv: &mut Planes, duv: &mut Planes) {
+    uv.data
+        .par_chunks_mut(uv.n * uv.ps)
+        .zip(duv.data.par_chunks_mut(duv.n * duv.ps))
+        .for_each(|(u, d)| {
+            for (u, d) in u.iter_mut().zip(d) {
+                *u += *d;
+                *d = 0.0;
+            }
+        });
+}
+
+/// Warps the second image by colour `c`'s flow `uv`: `Iz = I1(x + u) − I0(x)`, `Ix`, `Iy`
+/// averaged over both images, into the first three planes of `deriv`.
 fn warp(
     sp: &Split,
     c: usize,
     inp: &RefineInput<'_>,
-    uv: &mut Planes,
-    duv: &mut Planes,
+    uv: &Planes,
     deriv: &mut Planes,
 ) {
     let ps = sp.ps;
@@ -360,15 +388,13 @@ fn warp(
     let (wmax, hmax) = ((w - 1) as f32, (h - 1) as f32);
     let second = &inp.second;
     let stride = second.stride;
-    uv.rows_mut(h)
-        .zip(duv.rows_mut(h))
+    uv.rows(h)
         .zip(deriv.rows_mut(h))
         .enumerate()
-        .for_each(|(y, ((uvr, dr), der))| {
+        .for_each(|(y, (uvr, der))| {
             let s = Split::parity(c, y);
             let n = sp.count(c, y);
-            let (ur, vr) = uvr.split_at_mut(ps);
-            let (dur, dvr) = dr.split_at_mut(ps);
+            let (ur, vr) = uvr.split_at(ps);
             let (ixr, rest) = der.split_at_mut(ps);
             let (iyr, rest) = rest.split_at_mut(ps);
             let izr = &mut rest[..ps];
@@ -378,10 +404,6 @@ fn warp(
                 &inp.gy0[y * w..][..w],
             );
             for k in 1..=n {
-                ur[k] += dur[k];
-                vr[k] += dvr[k];
-                dur[k] = 0.0;
-                dvr[k] = 0.0;
                 let x = 2 * (k - 1) + s;
                 let (xw, yw) = (x as f32 + ur[k], y as f32 + vr[k]);
                 let mut d = [0.0f32; 3];

@@ -464,12 +464,8 @@ impl DisFlow {
         let (finest, coarsest) = self.levels(w, h);
         let polish = finest > 0 && (prm.polish_gd_iters > 0 || prm.polish_variational_iters > 0);
         let pool = &*self.buffers;
-        let mut scratch = core::mem::take(
-            &mut *self
-                .scratch
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner),
-        );
+        let mut scratch =
+            core::mem::take(&mut *self.scratch.lock().unwrap_or_else(PoisonError::into_inner));
         // Room for a full-resolution plane in every fresh buffer: those made at the coarse
         // levels serve the finer ones again (one-shot: 4776 -> 3951 page faults).
         pool.reserve_room(w * h);
@@ -573,10 +569,7 @@ impl DisFlow {
                 &mut scratch.changes,
             );
         }
-        *self
-            .scratch
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner) = scratch;
+        *self.scratch.lock().unwrap_or_else(PoisonError::into_inner) = scratch;
         for plane in rgb_luma.into_iter().flatten() {
             pool.put(plane);
         }

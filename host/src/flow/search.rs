@@ -443,7 +443,11 @@ fn search_level_n<const N: usize>(
             }),
     );
     // Every state is written by pass 1.
-    refill(state, nx * ny, core::iter::repeat_n(State::default(), nx * ny));
+    refill(
+        state,
+        nx * ny,
+        core::iter::repeat_n(State::default(), nx * ny),
+    );
     // Pass 1: rows, left to right, from the coarser level's flow.
     state
         .par_chunks_mut(nx)

@@ -107,7 +107,11 @@ impl Warpable {
                 let down = &i1[(y + 1).min(h - 1) * w..][..w];
                 // As `gradients`: half the central difference, one-sided at the ends.
                 let at = |x: usize, left: usize, right: usize| {
-                    [row[x], 0.5 * (row[right] - row[left]), 0.5 * (down[x] - up[x])]
+                    [
+                        row[x],
+                        0.5 * (row[right] - row[left]),
+                        0.5 * (down[x] - up[x]),
+                    ]
                 };
                 if w >= 2 {
                     out[0] = at(0, 0, 1);
@@ -131,7 +135,10 @@ impl Warpable {
     fn quad(&self, at: usize) -> Option<[f32x4; 4]> {
         let pair = |i: usize| {
             let s = self.data.get(i..i + 2 * CHANNELS + 1)?;
-            let (a, b) = (s.first_chunk::<4>()?, s.get(CHANNELS..)?.first_chunk::<4>()?);
+            let (a, b) = (
+                s.first_chunk::<4>()?,
+                s.get(CHANNELS..)?.first_chunk::<4>()?,
+            );
             Some((f32x4::new(*a), f32x4::new(*b)))
         };
         let (p00, p01) = pair(CHANNELS * at)?;
@@ -224,12 +231,7 @@ impl Planes {
 }
 
 /// Refines `flow` (`w x h`, row-major) in place.
-pub(crate) fn refine(
-    inp: RefineInput<'_>,
-    flow: &mut [[f32; 2]],
-    s: &RefineSettings,
-    pool: &Pool,
-) {
+pub(crate) fn refine(inp: RefineInput<'_>, flow: &mut [[f32; 2]], s: &RefineSettings, pool: &Pool) {
     if s.fixed_point_iters == 0 {
         inp.recycle(pool);
         return;
@@ -298,7 +300,11 @@ pub(crate) fn refine(
     if let Some(duv) = &duv {
         gather(&sp, &uv, duv, flow);
     }
-    for p in [Some(uv), duv, Some(sys), wts].into_iter().flatten().flatten() {
+    for p in [Some(uv), duv, Some(sys), wts]
+        .into_iter()
+        .flatten()
+        .flatten()
+    {
         pool.put(p.data);
     }
     for p in edges.into_iter().flatten() {
@@ -376,13 +382,7 @@ fn absorb(uv: &mut Planes, duv: &mut Planes) {
 
 /// Warps the second image by colour `c`'s flow `uv`: `Iz = I1(x + u) − I0(x)`, `Ix`, `Iy`
 /// averaged over both images, into the first three planes of `deriv`.
-fn warp(
-    sp: &Split,
-    c: usize,
-    inp: &RefineInput<'_>,
-    uv: &Planes,
-    deriv: &mut Planes,
-) {
+fn warp(sp: &Split, c: usize, inp: &RefineInput<'_>, uv: &Planes, deriv: &mut Planes) {
     let ps = sp.ps;
     let (w, h) = (sp.w, sp.h);
     let (wmax, hmax) = ((w - 1) as f32, (h - 1) as f32);
@@ -680,7 +680,10 @@ mod tests {
         assert_eq!(second.data.len(), CHANNELS * (w + 1) * (h + 1) + 1);
         let last = (h - 1) * second.stride + w - 1;
         let [.., p11] = second.quad(last).unwrap();
-        assert_eq!(p11.to_array()[..CHANNELS], [i1[w * h - 1], gx[w * h - 1], gy[w * h - 1]]);
+        assert_eq!(
+            p11.to_array()[..CHANNELS],
+            [i1[w * h - 1], gx[w * h - 1], gy[w * h - 1]]
+        );
         assert!(second.quad(last + 1).is_none());
     }
 

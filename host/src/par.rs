@@ -4,14 +4,17 @@
 //! no sum crosses tasks.
 
 #[cfg(feature = "threads")]
-pub(crate) use rayon::{prelude::*, slice::ChunksMut};
+pub(crate) use rayon::{
+    prelude::*,
+    slice::{Chunks, ChunksMut},
+};
 #[cfg(not(feature = "threads"))]
-pub(crate) use serial::{ChunksMut, ForEachInit, ParSlice, ParSliceMut};
+pub(crate) use serial::{Chunks, ChunksMut, ForEachInit, ParSlice, ParSliceMut};
 
 #[cfg(not(feature = "threads"))]
 mod serial {
-    pub(crate) use core::slice::ChunksMut;
-    use core::slice::{Chunks, Iter, IterMut};
+    pub(crate) use core::slice::{Chunks, ChunksMut};
+    use core::slice::{Iter, IterMut};
 
     /// rayon's `par_*` names for shared slices, run serially.
     pub(crate) trait ParSlice<T> {

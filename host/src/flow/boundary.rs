@@ -34,13 +34,18 @@ pub(crate) struct Pair<'a> {
     pub i1: &'a [f32],
 }
 
+/// Each row's changes of one pass, `(x, new flow)`: scratch of [`select_at_boundaries`],
+/// kept by the caller between calls (empty lists or garbage between calls).
+pub(crate) type RowChanges = Vec<Vec<(usize, [f32; 2])>>;
+
 /// Runs `passes` passes of the selection over `flow` (`w x h`, row-major) with candidates
-/// `reach_px` pixels away.
+/// `reach_px` pixels away; `changes` is scratch.
 pub(crate) fn select_at_boundaries(
     images: Pair<'_>,
     flow: &mut [[f32; 2]],
     passes: usize,
     reach_px: usize,
+    changes: &mut RowChanges,
 ) {
     let (w, h) = (images.w, images.h);
     let n = w * h;
@@ -50,7 +55,10 @@ pub(crate) fn select_at_boundaries(
     // Few pixels change: each row lists its changes while every row reads the pass's
     // input, then they are written in. No copy of the field (2.4 MB at 640x480: its pages
     // faulted in by a one-shot `riseg flow`, and copied twice per estimate).
-    let mut changes: Vec<Vec<(usize, [f32; 2])>> = vec![Vec::new(); h];
+    if changes.len() < h {
+        changes.resize_with(h, Vec::new);
+    }
+    let changes = &mut changes[..h];
     for _ in 0..passes {
         let src = &*flow;
         changes.par_iter_mut().enumerate().for_each(|(y, row)| {
@@ -346,7 +354,7 @@ mod tests {
             sum / n as f32
         };
         let mut flow = ramp.clone();
-        select_at_boundaries(images, &mut flow, 2, 4);
+        select_at_boundaries(images, &mut flow, 2, 4, &mut Vec::new());
         let (before, after) = (band_epe(&ramp), band_epe(&flow));
         eprintln!("EPE within 5 px of the boundary: ramp {before:.3}, selected {after:.3} px");
         // Measured: 1.200 -> 0.543 px (the pixels whose window straddles the boundary stay off).
@@ -354,8 +362,9 @@ mod tests {
         assert!(after < 0.6 * before, "{after} vs {before}");
         // No pass, or no reach, changes nothing.
         let mut same = ramp.clone();
-        select_at_boundaries(images, &mut same, 0, 4);
-        select_at_boundaries(images, &mut same, 2, 0);
+        let mut changes = Vec::new();
+        select_at_boundaries(images, &mut same, 0, 4, &mut changes);
+        select_at_boundaries(images, &mut same, 2, 0, &mut changes);
         assert_eq!(same, ramp);
     }
 
@@ -370,14 +379,15 @@ mod tests {
             i1: &i0,
         };
         let mut flow = vec![[1.5, -2.0]; w * h];
-        select_at_boundaries(images, &mut flow, 3, 1000);
+        let mut changes = vec![vec![(0, [9.0; 2])]; 7];
+        select_at_boundaries(images, &mut flow, 3, 1000, &mut changes);
         assert!(flow.iter().all(|f| *f == [1.5, -2.0]));
         // A flow of the wrong length is left alone; a NaN flow does not panic.
         let mut short = vec![[0.0; 2]; 4];
-        select_at_boundaries(images, &mut short, 1, 1);
+        select_at_boundaries(images, &mut short, 1, 1, &mut changes);
         assert_eq!(short.len(), 4);
         let mut nan = vec![[f32::NAN, 0.0]; w * h];
         nan[7] = [2.0, 0.0];
-        select_at_boundaries(images, &mut nan, 1, 1);
+        select_at_boundaries(images, &mut nan, 1, 1, &mut changes);
     }
 }

@@ -10,7 +10,7 @@
 
 use super::pool::{Lent, Pool};
 use super::pyramid::{Padded, Tap};
-use super::search::{Grid, LANES, PatchFlow, Template, lanes, lanes_mut, with_patch_size};
+use super::search::{Grid, LANES, PatchFlow, lanes, lanes_mut, refill, with_patch_size};
 use wide::f32x4;
 
 /// One in every lane.
@@ -18,10 +18,12 @@ const ONE: f32x4 = f32x4::splat(1.0);
 use crate::par::*;
 
 /// Dense `w x h` flow from the patch flows of one level (`patches` row-major over the
-/// grid, which covers every pixel); `outlier_per_grey` is the weight's `κ`.
-#[allow(clippy::too_many_arguments)] // the level's inputs, its pools and one setting
+/// grid, which covers every pixel), `first` the level's first image and its width;
+/// `outlier_per_grey` is the weight's `κ`. `taps` is scratch (garbage after the call),
+/// kept by the caller between calls.
+#[allow(clippy::too_many_arguments)] // the level's inputs, its pools, scratch and one setting
 pub(crate) fn densify(
-    t: &Template<'_>,
+    first: (&[f32], usize),
     i1: &Padded,
     patches: &[PatchFlow],
     grid: &Grid<'_>,
@@ -29,14 +31,15 @@ pub(crate) fn densify(
     outlier_per_grey: f32,
     pool: &Pool,
     flows: &Pool<[f32; 2]>,
+    taps: &mut Vec<Tap>,
 ) -> Lent<[f32; 2]> {
-    with_patch_size!(grid.size, N => densify_n::<N>(t, i1, patches, grid, h, outlier_per_grey, pool, flows))
+    with_patch_size!(grid.size, N => densify_n::<N>(first, i1, patches, grid, h, outlier_per_grey, pool, flows, taps))
 }
 
 /// [`densify`] for patches of side `N` (`grid.size`).
 #[allow(clippy::too_many_arguments)] // densify's arguments, passed through
 fn densify_n<const N: usize>(
-    t: &Template<'_>,
+    (i0, w): (&[f32], usize),
     i1: &Padded,
     patches: &[PatchFlow],
     grid: &Grid<'_>,
@@ -44,17 +47,20 @@ fn densify_n<const N: usize>(
     outlier_per_grey: f32,
     pool: &Pool,
     flows: &Pool<[f32; 2]>,
+    taps: &mut Vec<Tap>,
 ) -> Lent<[f32; 2]> {
     let (xs, ys, size) = (grid.xs, grid.ys, N);
-    let w = t.w;
     // Sums of weight, weight·u and weight·v in separate planes (element-wise loops).
     // Each patch's bilinear taps, computed once (every row of the patch reuses them).
-    let taps: Vec<Tap> = ys
-        .iter()
-        .flat_map(|&py| xs.iter().map(move |&px| (px, py)))
-        .zip(patches)
-        .map(|((px, py), p)| i1.tap(px as f32 + p.u, py as f32 + p.v, size))
-        .collect();
+    refill(
+        taps,
+        patches.len(),
+        ys.iter()
+            .flat_map(|&py| xs.iter().map(move |&px| (px, py)))
+            .zip(patches)
+            .map(|((px, py), p)| i1.tap(px as f32 + p.u, py as f32 + p.v, size)),
+    );
+    let taps = &*taps;
     let kappa = f32x4::splat(outlier_per_grey);
     let mut sums = pool.zeroed(3 * w * h);
     sums.par_chunks_mut(3 * w)
@@ -63,7 +69,7 @@ fn densify_n<const N: usize>(
             let (sw, rest) = chunk.split_at_mut(w);
             let (su, sv) = rest.split_at_mut(w);
             let first = ys.partition_point(|&py| py + size <= y);
-            let t_row = &t.i0[y * w..][..w];
+            let t_row = &i0[y * w..][..w];
             for (j, &py) in ys.iter().enumerate().skip(first) {
                 if py > y {
                     break;

@@ -40,19 +40,22 @@
 //! # Ok::<(), riseg::flow::FlowError>(())
 //! ```
 
-use super::boundary::{Pair, select_at_boundaries};
+use super::boundary::{Pair, RowChanges, select_at_boundaries};
 use super::densify::densify;
 use super::pool::{Lent, Pool};
 use super::pyramid::{
-    Padded, Plane, downsample, downsample_luma, gradients, luma_plane, upsample_flow,
+    Padded, Plane, Tap, downsample, downsample_luma, gradients, luma_plane, upsample_flow,
 };
-use super::search::{Grid, MAX_CANDIDATES, SearchSettings, Template, positions, search_level};
+use super::search::{
+    Grid, MAX_CANDIDATES, PatchFlow, SearchScratch, SearchSettings, Template, positions,
+    search_level,
+};
 use super::variational::{RefineInput, RefineSettings, Warpable, refine};
 use riseg_core::ImageView;
 
 use super::{FlowError, FlowEstimator, check_pair};
 use crate::io::image::{FlowImage, Image};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 
 /// Parameters of [`DisFlow`]. Start from a preset ([`FlowParams::ULTRAFAST`],
 /// [`FlowParams::FAST`], [`FlowParams::MEDIUM`], [`FlowParams::FINE`]) and change fields
@@ -286,6 +289,22 @@ pub struct DisFlow {
     /// Buffers kept between calls (shared by clones).
     buffers: Arc<Pool>,
     flows: Arc<Pool<[f32; 2]>>,
+    /// The other buffers of a call, kept between calls (an estimate takes them, and one
+    /// running beside it starts from empty ones).
+    scratch: Arc<Mutex<Scratch>>,
+}
+
+/// The buffers of an estimate that are not planes: the patch grid, the search's and the
+/// densification's per-patch values, the boundary selection's change lists. Each grows to
+/// its largest use in the first estimate and is reused by the later ones.
+#[derive(Debug, Default)]
+struct Scratch {
+    xs: Vec<usize>,
+    ys: Vec<usize>,
+    search: SearchScratch,
+    patches: Vec<PatchFlow>,
+    taps: Vec<Tap>,
+    changes: RowChanges,
 }
 
 impl DisFlow {
@@ -301,6 +320,7 @@ impl DisFlow {
             pool: None,
             buffers: Arc::default(),
             flows: Arc::default(),
+            scratch: Arc::default(),
         })
     }
 
@@ -444,6 +464,8 @@ impl DisFlow {
         let (finest, coarsest) = self.levels(w, h);
         let polish = finest > 0 && (prm.polish_gd_iters > 0 || prm.polish_variational_iters > 0);
         let pool = &*self.buffers;
+        let mut scratch =
+            core::mem::take(&mut *self.scratch.lock().unwrap_or_else(PoisonError::into_inner));
         // Room for a full-resolution plane in every fresh buffer: those made at the coarse
         // levels serve the finer ones again (one-shot: 4776 -> 3951 page faults).
         pool.reserve_room(w * h);
@@ -507,6 +529,7 @@ impl DisFlow {
                 a.h,
                 &mut flow,
                 &self.level_step(l, coarsest, hint_px),
+                &mut scratch,
             );
         }
         // Up to full resolution, where a last level runs when the estimate goes down to
@@ -530,7 +553,7 @@ impl DisFlow {
         };
         if let (true, Base::Gray([first, second])) = (at_full, base) {
             if let Some(step) = full_step {
-                self.level(first, second, w, h, &mut flow, &step);
+                self.level(first, second, w, h, &mut flow, &step, &mut scratch);
             }
             let images = Pair {
                 w,
@@ -543,8 +566,10 @@ impl DisFlow {
                 &mut flow,
                 prm.boundary_passes,
                 prm.boundary_reach_px,
+                &mut scratch.changes,
             );
         }
+        *self.scratch.lock().unwrap_or_else(PoisonError::into_inner) = scratch;
         for plane in rgb_luma.into_iter().flatten() {
             pool.put(plane);
         }
@@ -555,6 +580,7 @@ impl DisFlow {
     }
 
     /// One pyramid level: inverse search from `flow`, densification, refinement.
+    #[allow(clippy::too_many_arguments)] // the level's images, flow, settings and scratch
     fn level(
         &self,
         i0: &[f32],
@@ -563,6 +589,7 @@ impl DisFlow {
         h: usize,
         flow: &mut Lent<[f32; 2]>,
         step: &LevelStep,
+        scratch: &mut Scratch,
     ) {
         let prm = &self.params;
         let pool = &*self.buffers;
@@ -575,8 +602,21 @@ impl DisFlow {
             gx: &gx0,
             gy: &gy0,
         };
-        let xs = positions(w, p, prm.patch_stride_px);
-        let ys = positions(h, p, prm.patch_stride_px);
+        let Scratch {
+            xs,
+            ys,
+            search: search_scratch,
+            patches,
+            taps,
+            ..
+        } = scratch;
+        positions(w, p, prm.patch_stride_px, xs);
+        positions(h, p, prm.patch_stride_px, ys);
+        let grid = Grid {
+            xs: xs.as_slice(),
+            ys: ys.as_slice(),
+            size: p,
+        };
         let search = SearchSettings {
             size: p,
             iters: step.gd_iters,
@@ -586,51 +626,43 @@ impl DisFlow {
             anchor: step.anchor,
             candidates: step.candidates,
         };
-        let patches = search_level(&t, &i1p, flow, &xs, &ys, &search);
-        let grid = Grid {
-            xs: &xs,
-            ys: &ys,
-            size: p,
-        };
+        search_level(&t, &i1p, flow, &grid, &search, search_scratch, patches);
         let dense = densify(
-            &t,
+            (i0, w),
             &i1p,
-            &patches,
+            patches,
             &grid,
             h,
             prm.densify_outlier_per_grey,
             pool,
             &self.flows,
+            taps,
         );
         self.flows.put(core::mem::replace(flow, dense));
         // The refinement reads the unpadded image: its buffers may reuse this one.
         pool.put(i1p.data);
-        if step.variational_iters > 0 {
-            let (gx1, gy1) = gradients(i1, w, h, pool);
-            let second = Warpable::new(i1, &gx1, &gy1, (w, h), pool);
-            pool.put(gx1);
-            pool.put(gy1);
-            let inp = RefineInput {
-                w,
-                h,
-                i0,
-                gx0: &gx0,
-                gy0: &gy0,
-                second: &second,
-            };
-            let settings = RefineSettings {
-                fixed_point_iters: step.variational_iters,
-                sor_iters: prm.sor_iters,
-                sor_omega: prm.sor_omega,
-                alpha: prm.smoothness,
-                delta: prm.data_weight,
-                edge_grey: prm.smoothness_edge_grey,
-            };
-            refine(&inp, flow, &settings, pool);
-            second.recycle(pool);
+        if step.variational_iters == 0 {
+            pool.put(gx0);
+            pool.put(gy0);
+            return;
         }
-        pool.put(gx0);
-        pool.put(gy0);
+        let inp = RefineInput {
+            w,
+            h,
+            i0,
+            gx0,
+            gy0,
+            second: Warpable::new(i1, (w, h), pool),
+        };
+        let settings = RefineSettings {
+            fixed_point_iters: step.variational_iters,
+            sor_iters: prm.sor_iters,
+            sor_omega: prm.sor_omega,
+            alpha: prm.smoothness,
+            delta: prm.data_weight,
+            edge_grey: prm.smoothness_edge_grey,
+        };
+        refine(inp, flow, &settings, pool);
     }
 }
 

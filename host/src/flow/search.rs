@@ -19,14 +19,15 @@ use crate::par::*;
 use wide::f32x4;
 
 /// Top-left corners of patches of side `size` every `stride` pixels along a side of
-/// `len >= size` pixels; the last patch is moved in so that it ends at the border.
-pub(crate) fn positions(len: usize, size: usize, stride: usize) -> Vec<usize> {
+/// `len >= size` pixels, into `out`; the last patch is moved in so that it ends at the
+/// border.
+pub(crate) fn positions(len: usize, size: usize, stride: usize, out: &mut Vec<usize>) {
     let last = len - size;
-    let mut v: Vec<usize> = (0..=last).step_by(stride).collect();
-    if v.last() != Some(&last) {
-        v.push(last);
+    out.clear();
+    out.extend((0..=last).step_by(stride));
+    if out.last() != Some(&last) {
+        out.push(last);
     }
-    v
 }
 
 /// The patch grid of one level: top-left corners along x and y, and the patch side.
@@ -73,6 +74,25 @@ pub(crate) struct Template<'a> {
     pub i0: &'a [f32],
     pub gx: &'a [f32],
     pub gy: &'a [f32],
+}
+
+/// The buffers of one level's search, kept by the estimator between levels and estimates
+/// (their contents are garbage between calls): the per-patch constants and states, row-
+/// major over the grid, and both transposed for the column sweeps of the propagation.
+#[derive(Debug, Default)]
+pub(crate) struct SearchScratch {
+    models: Vec<PatchModel>,
+    models_t: Vec<PatchModel>,
+    state: Vec<State>,
+    state_t: Vec<State>,
+}
+
+/// `out` made to hold exactly `items` (`len` of them): grown at most once, to that length,
+/// and never by the copies of repeated doubling (each copy faults in fresh pages).
+pub(crate) fn refill<T>(out: &mut Vec<T>, len: usize, items: impl Iterator<Item = T>) {
+    out.clear();
+    out.reserve(len);
+    out.extend(items);
 }
 
 /// Sums over one patch at one displacement.
@@ -188,7 +208,7 @@ fn stats<const N: usize>(
 }
 
 /// Per-patch constants: the Gauss-Newton normal matrix inverse and the mean gradient.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 struct PatchModel {
     inv: [f32; 3],
     mgx: f32,
@@ -290,7 +310,7 @@ struct Ctx<'a, const N: usize> {
 }
 
 /// A patch's current estimate and its SSD there.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 struct State {
     u: f32,
     v: f32,
@@ -367,8 +387,8 @@ impl<const N: usize> Ctx<'_, N> {
 }
 
 /// Searches every patch of one level. `init` is the dense flow (`w x h`) the search starts
-/// from (the coarser level's result, zero at the coarsest). Returns one [`PatchFlow`] per
-/// grid patch, row-major over `(ys, xs)`.
+/// from (the coarser level's result, zero at the coarsest). Writes one [`PatchFlow`] per
+/// grid patch, row-major over `(ys, xs)`, into `out`.
 ///
 /// With `s.anchor > 0` every SSD a patch compares carries [`anchor_penalty`] around the
 /// flow of `init` at its centre.
@@ -378,15 +398,17 @@ impl<const N: usize> Ctx<'_, N> {
 /// along columns, leftwards along rows, upwards along columns): a patch whose neighbour's
 /// flow matches better restarts from it. Each pass runs its lines in parallel and each
 /// line in order, so the result does not depend on the thread count.
+#[allow(clippy::too_many_arguments)] // the level's inputs, settings, scratch and output
 pub(crate) fn search_level(
     t: &Template<'_>,
     i1: &Padded,
     init: &[[f32; 2]],
-    xs: &[usize],
-    ys: &[usize],
+    grid: &Grid<'_>,
     s: &SearchSettings,
-) -> Vec<PatchFlow> {
-    with_patch_size!(s.size, N => search_level_n::<N>(t, i1, init, xs, ys, s))
+    scratch: &mut SearchScratch,
+    out: &mut Vec<PatchFlow>,
+) {
+    with_patch_size!(s.size, N => search_level_n::<N>(t, i1, init, grid, s, scratch, out));
 }
 
 /// [`search_level`] for patches of side `N` (`s.size`).
@@ -394,18 +416,24 @@ fn search_level_n<const N: usize>(
     t: &Template<'_>,
     i1: &Padded,
     init: &[[f32; 2]],
-    xs: &[usize],
-    ys: &[usize],
+    &Grid { xs, ys, .. }: &Grid<'_>,
     s: &SearchSettings,
-) -> Vec<PatchFlow> {
+    scratch: &mut SearchScratch,
+    out: &mut Vec<PatchFlow>,
+) {
     let (nx, ny) = (xs.len(), ys.len());
     let size = N;
     let mn = s.mean_normalization;
     let ctx = Ctx::<N> { t, i1, s };
-    // Made at their final length: a `flat_map` does not know its length, and collecting it
-    // grows the vector by copies, each faulting in fresh pages (one-shot `riseg flow`).
-    let mut models: Vec<PatchModel> = Vec::with_capacity(nx * ny);
-    models.extend(
+    let SearchScratch {
+        models,
+        models_t,
+        state,
+        state_t,
+    } = scratch;
+    refill(
+        models,
+        nx * ny,
         ys.iter()
             .flat_map(|&py| xs.iter().map(move |&px| (px, py)))
             .map(|(px, py)| {
@@ -414,15 +442,12 @@ fn search_level_n<const N: usize>(
                 m
             }),
     );
-    let mut state = vec![
-        State {
-            u: 0.0,
-            v: 0.0,
-            ssd: 0.0,
-            r: 0.0,
-        };
-        nx * ny
-    ];
+    // Every state is written by pass 1.
+    refill(
+        state,
+        nx * ny,
+        core::iter::repeat_n(State::default(), nx * ny),
+    );
     // Pass 1: rows, left to right, from the coarser level's flow.
     state
         .par_chunks_mut(nx)
@@ -446,24 +471,24 @@ fn search_level_n<const N: usize>(
         });
     if s.propagation {
         // Pass 2 and 4 work on columns: transpose, sweep, transpose back.
-        let mut cols = transpose(&state, nx, ny);
-        let models_t = transpose(&models, nx, ny);
-        sweep_lines(&ctx, &mut cols, &models_t, ny, |j, i| (xs[j], ys[i]), false);
-        state = transpose(&cols, ny, nx);
-        sweep_lines(&ctx, &mut state, &models, nx, |j, i| (xs[i], ys[j]), true);
-        cols = transpose(&state, nx, ny);
-        sweep_lines(&ctx, &mut cols, &models_t, ny, |j, i| (xs[j], ys[i]), true);
-        state = transpose(&cols, ny, nx);
+        transpose(state, nx, ny, state_t);
+        transpose(models, nx, ny, models_t);
+        sweep_lines(&ctx, state_t, models_t, ny, |j, i| (xs[j], ys[i]), false);
+        transpose(state_t, ny, nx, state);
+        sweep_lines(&ctx, state, models, nx, |j, i| (xs[i], ys[j]), true);
+        transpose(state, nx, ny, state_t);
+        sweep_lines(&ctx, state_t, models_t, ny, |j, i| (xs[j], ys[i]), true);
+        transpose(state_t, ny, nx, state);
     }
-    state
-        .iter()
-        .zip(&models)
-        .map(|(st, m)| PatchFlow {
+    refill(
+        out,
+        nx * ny,
+        state.iter().zip(models.iter()).map(|(st, m)| PatchFlow {
             u: st.u,
             v: st.v,
             offset: if mn { st.r / m.n } else { 0.0 },
-        })
-        .collect()
+        }),
+    );
 }
 
 /// One propagation pass over lines of `len` patches (line `j`, position `i` is the patch
@@ -481,25 +506,27 @@ fn sweep_lines<const N: usize>(
         .zip(models.par_chunks(len))
         .enumerate()
         .for_each(|(j, (line, ms))| {
-            let order: Box<dyn Iterator<Item = usize>> = if backwards {
-                Box::new((0..len.saturating_sub(1)).rev())
-            } else {
-                Box::new(1..len)
-            };
-            for i in order {
-                let prev = if backwards { line[i + 1] } else { line[i - 1] };
+            // Forwards: positions 1, 2, ..., len - 1, each after its predecessor;
+            // backwards: len - 2, ..., 0, each after its successor.
+            for step in 1..len {
+                let (i, prev) = if backwards {
+                    (len - 1 - step, len - step)
+                } else {
+                    (step, step - 1)
+                };
                 let (px, py) = pos(j, i);
-                line[i] = ctx.propagate(&ms[i], px, py, line[i], prev);
+                line[i] = ctx.propagate(&ms[i], px, py, line[i], line[prev]);
             }
         });
 }
 
-/// `rows x cols` row-major into `cols x rows` row-major.
-fn transpose<T: Copy>(a: &[T], cols: usize, rows: usize) -> Vec<T> {
-    // At its final length, as `models` in `search_level_n`.
-    let mut t = Vec::with_capacity(cols * rows);
-    t.extend((0..cols).flat_map(|c| (0..rows).map(move |r| a[r * cols + c])));
-    t
+/// `rows x cols` row-major into `cols x rows` row-major, in `out`.
+fn transpose<T: Copy>(a: &[T], cols: usize, rows: usize, out: &mut Vec<T>) {
+    refill(
+        out,
+        cols * rows,
+        (0..cols).flat_map(|c| (0..rows).map(move |r| a[r * cols + c])),
+    );
 }
 
 #[cfg(test)]
@@ -508,8 +535,12 @@ mod tests {
 
     #[test]
     fn positions_cover_the_side() {
-        assert_eq!(positions(20, 8, 4), vec![0, 4, 8, 12]);
-        assert_eq!(positions(21, 8, 4), vec![0, 4, 8, 12, 13]);
-        assert_eq!(positions(8, 8, 3), vec![0]);
+        let mut v = vec![7; 9];
+        positions(20, 8, 4, &mut v);
+        assert_eq!(v, [0, 4, 8, 12]);
+        positions(21, 8, 4, &mut v);
+        assert_eq!(v, [0, 4, 8, 12, 13]);
+        positions(8, 8, 3, &mut v);
+        assert_eq!(v, [0]);
     }
 }

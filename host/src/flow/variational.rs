@@ -48,54 +48,102 @@ const EPS_DATA: f32 = 1.0;
 /// Charbonnier epsilon of the smoothness term, pixels per pixel.
 const EPS_SMOOTH: f32 = 0.05;
 
-/// The level's images the refinement reads.
+/// The level's images the refinement reads. The buffers are lent to it: only the warps
+/// read the gradients and the second image, and after the last one the refinement gives
+/// them back to the pool, so that the buffers it makes then (the smoothness weights) reuse
+/// their pages.
 pub(crate) struct RefineInput<'a> {
     pub w: usize,
     pub h: usize,
     pub i0: &'a [f32],
-    pub gx0: &'a [f32],
-    pub gy0: &'a [f32],
+    /// The first image's gradients ([`super::pyramid::gradients`]).
+    pub gx0: Lent<f32>,
+    pub gy0: Lent<f32>,
     /// The second image and its gradients, interleaved.
-    pub second: &'a Warpable,
+    pub second: Warpable,
 }
 
-/// The second image and its gradients interleaved per pixel as `[I1, ∂I1/∂x, ∂I1/∂y, 0]`
-/// (one bilinear tap reads all three), row-major with the last column and row repeated
-/// once so that a tap at the last pixel stays inside. The values live in a flat buffer of
-/// the level's [`Pool`] (four per pixel); [`Warpable::recycle`] gives it back.
+impl RefineInput<'_> {
+    /// Gives the lent buffers back to `pool`.
+    fn recycle(self, pool: &Pool) {
+        pool.put(self.gx0);
+        pool.put(self.gy0);
+        pool.put(self.second.data);
+    }
+}
+
+/// Values per pixel of a [`Warpable`].
+const CHANNELS: usize = 3;
+
+/// The second image and its gradients interleaved per pixel as `[I1, ∂I1/∂x, ∂I1/∂y]`
+/// (one bilinear tap reads all three as the first lanes of one [`f32x4`] load, whose
+/// fourth lane is the next pixel's `I1` and is not used), row-major with the last column
+/// and row repeated once so that a tap at the last pixel stays inside, and one value more
+/// at the end for the last load's fourth lane. The gradients are those of
+/// [`super::pyramid::gradients`], bit for bit. The values live in a flat buffer of the
+/// level's [`Pool`]; [`Warpable::recycle`] gives it back.
 #[derive(Debug, Clone)]
 pub(crate) struct Warpable {
+    /// Pixels per buffer row (`w + 1`).
     stride: usize,
     data: Lent<f32>,
 }
 
 impl Warpable {
-    /// Interleaves `i1`, `gx` and `gy` (each `w x h`, `w, h >= 1`).
-    pub fn new(i1: &[f32], gx: &[f32], gy: &[f32], (w, h): (usize, usize), pool: &Pool) -> Self {
+    /// `i1` (`w x h`, `w, h >= 1`) interleaved with its central-difference gradients.
+    pub fn new(i1: &[f32], (w, h): (usize, usize), pool: &Pool) -> Self {
         let stride = w + 1;
-        let mut data = pool.scratch(4 * stride * (h + 1));
-        data.par_chunks_mut(4 * stride)
+        let body = CHANNELS * stride * (h + 1);
+        let mut data = pool.scratch(body + 1);
+        let (rows, last) = data.split_at_mut(body);
+        last.fill(0.0);
+        rows.par_chunks_mut(CHANNELS * stride)
             .enumerate()
             .for_each(|(yy, out)| {
-                let out = out.as_chunks_mut::<4>().0;
-                let y = yy.min(h - 1) * w;
-                let (a, b, c) = (&i1[y..][..w], &gx[y..][..w], &gy[y..][..w]);
-                for (((o, &a), &b), &c) in out.iter_mut().zip(a).zip(b).zip(c) {
-                    *o = [a, b, c, 0.0];
+                let out = out.as_chunks_mut::<CHANNELS>().0;
+                let y = yy.min(h - 1);
+                let row = &i1[y * w..][..w];
+                let up = &i1[y.saturating_sub(1) * w..][..w];
+                let down = &i1[(y + 1).min(h - 1) * w..][..w];
+                // As `gradients`: half the central difference, one-sided at the ends.
+                let at = |x: usize, left: usize, right: usize| {
+                    [
+                        row[x],
+                        0.5 * (row[right] - row[left]),
+                        0.5 * (down[x] - up[x]),
+                    ]
+                };
+                if w >= 2 {
+                    out[0] = at(0, 0, 1);
+                    out[w - 1] = at(w - 1, w - 2, w - 1);
+                    let inner = out[1..w - 1].iter_mut().zip(row.windows(3));
+                    for ((o, three), (&u, &d)) in inner.zip(up[1..].iter().zip(&down[1..])) {
+                        *o = [three[1], 0.5 * (three[2] - three[0]), 0.5 * (d - u)];
+                    }
+                } else {
+                    out[0] = [row[0], 0.0, 0.5 * (down[0] - up[0])];
                 }
                 out[w] = out[w - 1];
             });
         Self { stride, data }
     }
 
-    /// Gives the buffer back to `pool`.
-    pub fn recycle(self, pool: &Pool) {
-        pool.put(self.data);
-    }
-
-    /// The interleaved pixels.
-    fn pixels(&self) -> &[[f32; 4]] {
-        self.data.as_chunks::<4>().0
+    /// The values a bilinear tap at pixel `at` reads, as the first three lanes of four
+    /// vectors: pixels `at`, `at + 1` (top) and `at + stride`, `at + stride + 1` (bottom);
+    /// `None` past the end.
+    #[inline]
+    fn quad(&self, at: usize) -> Option<[f32x4; 4]> {
+        let pair = |i: usize| {
+            let s = self.data.get(i..i + 2 * CHANNELS + 1)?;
+            let (a, b) = (
+                s.first_chunk::<4>()?,
+                s.get(CHANNELS..)?.first_chunk::<4>()?,
+            );
+            Some((f32x4::new(*a), f32x4::new(*b)))
+        };
+        let (p00, p01) = pair(CHANNELS * at)?;
+        let (p10, p11) = pair(CHANNELS * (at + self.stride))?;
+        Some([p00, p01, p10, p11])
     }
 }
 
@@ -169,6 +217,12 @@ impl Planes {
         &self.row(yy, j)[start..][..n]
     }
 
+    /// The chunks of image rows `0..h` (guard rows excluded), in parallel, to read.
+    fn rows(&self, h: usize) -> crate::par::Chunks<'_, f32> {
+        let c = self.n * self.ps;
+        self.data[c..(h + 1) * c].par_chunks(c)
+    }
+
     /// The chunks of image rows `0..h` (guard rows excluded), in parallel.
     fn rows_mut(&mut self, h: usize) -> crate::par::ChunksMut<'_, f32> {
         let c = self.n * self.ps;
@@ -177,13 +231,9 @@ impl Planes {
 }
 
 /// Refines `flow` (`w x h`, row-major) in place.
-pub(crate) fn refine(
-    inp: &RefineInput<'_>,
-    flow: &mut [[f32; 2]],
-    s: &RefineSettings,
-    pool: &Pool,
-) {
+pub(crate) fn refine(inp: RefineInput<'_>, flow: &mut [[f32; 2]], s: &RefineSettings, pool: &Pool) {
     if s.fixed_point_iters == 0 {
+        inp.recycle(pool);
         return;
     }
     let sp = Split::new(inp.w, inp.h);
@@ -192,11 +242,14 @@ pub(crate) fn refine(
     // first three planes hold the warped derivatives (ix, iy, iz) until `system` turns
     // each pixel's into its equations (one buffer less to fault in: one-shot `riseg flow`,
     // 230 pages at level 1). Neighbour reads reach the guards of the flow, increment and
-    // weight planes, so those start zeroed; the system is only read where written.
+    // weight planes, so those start zeroed; the system is only read where written. The
+    // weights are made after the last warp has given its inputs back.
     let mut uv = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
-    let mut duv = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
-    let mut wts = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
     let mut sys = [Planes::scratch(&sp, 5, pool), Planes::scratch(&sp, 5, pool)];
+    // Made after the first warp: the increment is zero until the first solve (and
+    // `scatter` adds that zero to the flow).
+    let mut duv: Option<[Planes; 2]> = None;
+    let mut wts: Option<[Planes; 2]> = None;
     for (c, uvc) in uv.iter_mut().enumerate() {
         scatter(&sp, c, flow, uvc);
     }
@@ -207,34 +260,51 @@ pub(crate) fn refine(
             e
         })
     });
-    for _ in 0..s.fixed_point_iters {
-        for (c, ((uvc, dc), sc)) in uv
-            .iter_mut()
-            .zip(duv.iter_mut())
-            .zip(sys.iter_mut())
-            .enumerate()
-        {
-            warp(&sp, c, inp, uvc, dc, sc);
+    let mut warp_input = Some(inp);
+    for iter in 0..s.fixed_point_iters {
+        if let Some(duv) = &mut duv {
+            for (uvc, dc) in uv.iter_mut().zip(duv.iter_mut()) {
+                absorb(uvc, dc);
+            }
         }
+        if let Some(inp) = &warp_input {
+            for (c, (uvc, sc)) in uv.iter().zip(sys.iter_mut()).enumerate() {
+                warp(&sp, c, inp, uvc, sc);
+            }
+        }
+        if iter + 1 == s.fixed_point_iters
+            && let Some(inp) = warp_input.take()
+        {
+            inp.recycle(pool);
+        }
+        let duv = duv.get_or_insert_with(|| [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)]);
+        let wts = wts.get_or_insert_with(|| [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)]);
         for (c, wc) in wts.iter_mut().enumerate() {
-            smoothness(&sp, c, &uv, &duv, wc, s.alpha);
+            smoothness(&sp, c, &uv, duv, wc, s.alpha);
             if let Some(e) = &edges {
                 apply_edges(&sp, &e[c], wc);
             }
         }
         for (c, sc) in sys.iter_mut().enumerate() {
-            system(&sp, c, &uv, &duv[c], &wts, sc, s.delta);
+            system(&sp, c, &uv, &duv[c], wts, sc, s.delta);
         }
         for _ in 0..s.sor_iters {
             for (c, sc) in sys.iter().enumerate() {
-                let [d0, d1] = &mut duv;
+                let [d0, d1] = &mut *duv;
                 let (mine, other) = if c == 0 { (d0, &*d1) } else { (d1, &*d0) };
-                sor_half_sweep(&sp, c, sc, &wts, mine, other, s.sor_omega);
+                sor_half_sweep(&sp, c, sc, wts, mine, other, s.sor_omega);
             }
         }
     }
-    gather(&sp, &uv, &duv, flow);
-    for p in [uv, duv, wts, sys].into_iter().flatten() {
+    // Made in the first iteration: `fixed_point_iters > 0`.
+    if let Some(duv) = &duv {
+        gather(&sp, &uv, duv, flow);
+    }
+    for p in [Some(uv), duv, Some(sys), wts]
+        .into_iter()
+        .flatten()
+        .flatten()
+    {
         pool.put(p.data);
     }
     for p in edges.into_iter().flatten() {
@@ -279,7 +349,8 @@ fn apply_edges(sp: &Split, edges: &Planes, wts: &mut Planes) {
         });
 }
 
-/// Row-major flow into colour `c`'s `(u, v)` planes.
+/// Row-major flow into colour `c`'s `(u, v)` planes, plus the zero increment (`u + 0`, as
+/// [`absorb`] adds an increment: a flow of `-0` becomes `+0`).
 fn scatter(sp: &Split, c: usize, flow: &[[f32; 2]], uv: &mut Planes) {
     let ps = sp.ps;
     uv.rows_mut(sp.h).enumerate().for_each(|(y, chunk)| {
@@ -289,49 +360,50 @@ fn scatter(sp: &Split, c: usize, flow: &[[f32; 2]], uv: &mut Planes) {
         let src = &flow[y * sp.w..][..sp.w];
         for k in 0..n {
             let f = src[2 * k + s];
-            ur[k + 1] = f[0];
-            vr[k + 1] = f[1];
+            ur[k + 1] = f[0] + 0.0;
+            vr[k + 1] = f[1] + 0.0;
         }
     });
 }
 
-/// Moves colour `c`'s increment into its flow (`u += du`, `du = 0`) and warps the second
-/// image by the result: `Iz = I1(x + u) − I0(x)`, `Ix`, `Iy` averaged over both images,
-/// into the first three planes of `deriv`.
-fn warp(
-    sp: &Split,
-    c: usize,
-    inp: &RefineInput<'_>,
-    uv: &mut Planes,
-    duv: &mut Planes,
-    deriv: &mut Planes,
-) {
+/// Moves an increment into its flow (`u += du`, `du = 0`), guards included (both stay 0
+/// there).
+fn absorb(uv: &mut Planes, duv: &mut Planes) {
+    uv.data
+        .par_chunks_mut(uv.n * uv.ps)
+        .zip(duv.data.par_chunks_mut(duv.n * duv.ps))
+        .for_each(|(u, d)| {
+            for (u, d) in u.iter_mut().zip(d) {
+                *u += *d;
+                *d = 0.0;
+            }
+        });
+}
+
+/// Warps the second image by colour `c`'s flow `uv`: `Iz = I1(x + u) − I0(x)`, `Ix`, `Iy`
+/// averaged over both images, into the first three planes of `deriv`.
+fn warp(sp: &Split, c: usize, inp: &RefineInput<'_>, uv: &Planes, deriv: &mut Planes) {
     let ps = sp.ps;
-    let (wmax, hmax) = ((sp.w - 1) as f32, (sp.h - 1) as f32);
-    let src = inp.second.pixels();
-    let stride = inp.second.stride;
-    uv.rows_mut(sp.h)
-        .zip(duv.rows_mut(sp.h))
-        .zip(deriv.rows_mut(sp.h))
+    let (w, h) = (sp.w, sp.h);
+    let (wmax, hmax) = ((w - 1) as f32, (h - 1) as f32);
+    let second = &inp.second;
+    let stride = second.stride;
+    uv.rows(h)
+        .zip(deriv.rows_mut(h))
         .enumerate()
-        .for_each(|(y, ((uvr, dr), der))| {
+        .for_each(|(y, (uvr, der))| {
             let s = Split::parity(c, y);
             let n = sp.count(c, y);
-            let (ur, vr) = uvr.split_at_mut(ps);
-            let (dur, dvr) = dr.split_at_mut(ps);
+            let (ur, vr) = uvr.split_at(ps);
             let (ixr, rest) = der.split_at_mut(ps);
             let (iyr, rest) = rest.split_at_mut(ps);
             let izr = &mut rest[..ps];
             let (i0, gx0, gy0) = (
-                &inp.i0[y * sp.w..][..sp.w],
-                &inp.gx0[y * sp.w..][..sp.w],
-                &inp.gy0[y * sp.w..][..sp.w],
+                &inp.i0[y * w..][..w],
+                &inp.gx0[y * w..][..w],
+                &inp.gy0[y * w..][..w],
             );
             for k in 1..=n {
-                ur[k] += dur[k];
-                vr[k] += dvr[k];
-                dur[k] = 0.0;
-                dvr[k] = 0.0;
                 let x = 2 * (k - 1) + s;
                 let (xw, yw) = (x as f32 + ur[k], y as f32 + vr[k]);
                 let mut d = [0.0f32; 3];
@@ -341,13 +413,10 @@ fn warp(
                     let (ix, iy) = (xw as i32, yw as i32);
                     let (ax, ay) = (xw - ix as f32, yw - iy as f32);
                     let at = iy.unsigned_abs() as usize * stride + ix.unsigned_abs() as usize;
-                    if let Some(q) = src.get(at..at + stride + 2) {
-                        // All four channels at once, each as `p + t·(q − p)`.
+                    if let Some([p00, p01, p10, p11]) = second.quad(at) {
+                        // All three channels at once, each as `p + t·(q − p)`.
                         let lerp = |p: f32x4, q: f32x4, t: f32| p + f32x4::splat(t) * (q - p);
-                        let at = |i: usize| f32x4::new(q[i]);
-                        let top = lerp(at(0), at(1), ax);
-                        let bottom = lerp(at(stride), at(stride + 1), ax);
-                        let v = lerp(top, bottom, ay).to_array();
+                        let v = lerp(lerp(p00, p01, ax), lerp(p10, p11, ax), ay).to_array();
                         d = [0.5 * (v[1] + gx0[x]), 0.5 * (v[2] + gy0[x]), v[0] - i0[x]];
                     }
                 }
@@ -593,21 +662,41 @@ mod tests {
         }
     }
 
-    /// A refinement input whose first image `i0` has the gradients `zero` (so that only
-    /// the second image's warp and the smoothness term act).
-    fn flat_gradient_input<'a>(
-        (w, h): (usize, usize),
-        i0: &'a [f32],
-        zero: &'a [f32],
-        second: &'a Warpable,
-    ) -> RefineInput<'a> {
+    #[test]
+    fn warpable_holds_the_image_and_its_gradients() {
+        let (w, h) = (5, 4);
+        let i1: Vec<f32> = (0..w * h).map(|i| ((i * 37) % 11) as f32 * 1.5).collect();
+        let pool = Pool::default();
+        let (gx, gy) = super::super::pyramid::gradients(&i1, w, h, &pool);
+        let second = Warpable::new(&i1, (w, h), &pool);
+        for yy in 0..=h {
+            for xx in 0..=w {
+                let (x, y) = (xx.min(w - 1), yy.min(h - 1));
+                let at = CHANNELS * (yy * second.stride + xx);
+                let i = y * w + x;
+                assert_eq!(&second.data[at..at + CHANNELS], [i1[i], gx[i], gy[i]]);
+            }
+        }
+        assert_eq!(second.data.len(), CHANNELS * (w + 1) * (h + 1) + 1);
+        let last = (h - 1) * second.stride + w - 1;
+        let [.., p11] = second.quad(last).unwrap();
+        assert_eq!(
+            p11.to_array()[..CHANNELS],
+            [i1[w * h - 1], gx[w * h - 1], gy[w * h - 1]]
+        );
+        assert!(second.quad(last + 1).is_none());
+    }
+
+    /// A refinement input whose two images are both `i` (`w x h`).
+    fn same_images<'a>(i: &'a [f32], (w, h): (usize, usize), pool: &Pool) -> RefineInput<'a> {
+        let (gx0, gy0) = super::super::pyramid::gradients(i, w, h, pool);
         RefineInput {
             w,
             h,
-            i0,
-            gx0: zero,
-            gy0: zero,
-            second,
+            i0: i,
+            gx0,
+            gy0,
+            second: Warpable::new(i, (w, h), pool),
         }
     }
 
@@ -620,10 +709,7 @@ mod tests {
         let i0: Vec<f32> = (0..w * h)
             .map(|i| if i % w < 8 { 0.0 } else { 100.0 })
             .collect();
-        let zero = vec![0.0f32; w * h];
         let pool = Pool::default();
-        let second = Warpable::new(&i0, &zero, &zero, (w, h), &pool);
-        let inp = flat_gradient_input((w, h), &i0, &zero, &second);
         let step = |edge_grey: f32| {
             let mut flow: Vec<[f32; 2]> = (0..w * h)
                 .map(|i| [if i % w < 8 { 0.0 } else { 1.0 }, 0.0])
@@ -636,7 +722,7 @@ mod tests {
                 delta: 0.0,
                 edge_grey,
             };
-            refine(&inp, &mut flow, &s, &pool);
+            refine(same_images(&i0, (w, h), &pool), &mut flow, &s, &pool);
             flow[w + 8][0] - flow[w + 7][0]
         };
         let (uniform, aware) = (step(0.0), step(10.0));
@@ -649,10 +735,7 @@ mod tests {
         // Flat images: no data term, constant flow is already a minimum.
         let (w, h) = (6, 5);
         let flat = vec![7.0f32; w * h];
-        let zero = vec![0.0f32; w * h];
         let pool = Pool::default();
-        let second = Warpable::new(&flat, &zero, &zero, (w, h), &pool);
-        let inp = flat_gradient_input((w, h), &flat, &zero, &second);
         let mut flow = vec![[0.5f32, -1.25]; w * h];
         let s = RefineSettings {
             fixed_point_iters: 2,
@@ -662,7 +745,7 @@ mod tests {
             delta: 5.0,
             edge_grey: 0.0,
         };
-        refine(&inp, &mut flow, &s, &pool);
+        refine(same_images(&flat, (w, h), &pool), &mut flow, &s, &pool);
         for v in &flow {
             assert!(
                 (v[0] - 0.5).abs() < 1e-6 && (v[1] + 1.25).abs() < 1e-6,

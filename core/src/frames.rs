@@ -625,12 +625,11 @@ fn build_frame_listing<const CAP: usize>(
         let (before, from_own) = window.split_at(own);
         let after = from_own.get(1..).unwrap_or(&[]);
         let runs = [(0, before), (own + 1, after)];
-        let listed = &mut scratch.listed;
         let count = if x_lo < COLUMN_KEY_EXACT_BELOW && x_span < COLUMN_KEY_EXACT_BELOW {
             let (base, span) = (column_key(x_lo, key), u64::from(x_span));
-            list::<CAP>(runs, listed, |s| s.column_key.wrapping_sub(base) <= span)
+            list::<CAP>(runs, scratch, |s| s.column_key.wrapping_sub(base) <= span)
         } else {
-            list::<CAP>(runs, listed, candidate)
+            list::<CAP>(runs, scratch, candidate)
         };
         // At `CAP` the next write already wrapped.
         if count < CAP {
@@ -645,20 +644,71 @@ fn build_frame_listing<const CAP: usize>(
 }
 
 /// Writes the places of the samples of `runs` (each with its first place) that pass
-/// `candidate` to `listed`, without a branch per sample; returns how many passed. A
+/// `candidate` to `scratch.listed`, and their points at `t` to `scratch.kept`, in order;
+/// returns how many passed. The test runs without a branch per sample: the results of a
+/// word of [`WORD_BITS`] samples are packed first, then only its set bits are visited. A
 /// write at `CAP` wraps (see [`build_frame_listing`]).
 #[inline]
 fn list<const CAP: usize>(
     runs: [(usize, &[FrameSample]); 2],
-    listed: &mut [u16; LISTED_ON_STACK],
+    scratch: &mut TriangleScratch,
     candidate: impl Fn(&FrameSample) -> bool,
 ) -> usize {
     let mut count = 0;
     for (start, run) in runs {
-        for (k, s) in (start..).zip(run) {
-            listed[count & (CAP - 1)] = k as u16;
-            count += usize::from(candidate(s));
+        let (words, rest) = run.as_chunks::<WORD_BITS>();
+        for (first, word) in (start..).step_by(WORD_BITS).zip(words) {
+            let bits = candidate_bits(word, &candidate);
+            count = emit::<CAP>(scratch, count, first, bits, |b| word.get(b % WORD_BITS));
         }
+        let first = start + words.len() * WORD_BITS;
+        let bits = candidate_bits(rest, &candidate);
+        count = emit::<CAP>(scratch, count, first, bits, |b| rest.get(b));
+    }
+    count
+}
+
+/// Samples whose candidate tests [`list`] packs into one word.
+const WORD_BITS: usize = usize::BITS as usize;
+
+/// Bit `b` set when `chunk[b]` (at most [`WORD_BITS`] samples) passes `candidate`.
+#[inline]
+fn candidate_bits(chunk: &[FrameSample], candidate: impl Fn(&FrameSample) -> bool) -> usize {
+    // First sample in the top bit, then reversed at once; four samples per shift.
+    let bit = |s| usize::from(candidate(s));
+    let (fours, rest) = chunk.as_chunks::<4>();
+    let bits = fours.iter().fold(0usize, |bits, [a, b, c, d]| {
+        bits << 4 | bit(a) << 3 | bit(b) << 2 | bit(c) << 1 | bit(d)
+    });
+    let bits = rest.iter().fold(bits, |bits, s| bits << 1 | bit(s));
+    bits.reverse_bits() >> (WORD_BITS - chunk.len()) % WORD_BITS
+}
+
+/// Lists sample `at(b)` (place `first + b`) for each set bit `b` of `bits`, from the
+/// lowest, at `count` onwards ([`list`]); returns the new count.
+#[inline]
+fn emit<'s, const CAP: usize>(
+    scratch: &mut TriangleScratch,
+    mut count: usize,
+    first: usize,
+    mut bits: usize,
+    at: impl Fn(usize) -> Option<&'s FrameSample>,
+) -> usize {
+    let TriangleScratch {
+        listed,
+        kept: [xs, ys, zs],
+        ..
+    } = scratch;
+    while bits != 0 {
+        let b = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        let Some(s) = at(b) else { break };
+        let slot = count & (CAP - 1);
+        listed[slot] = (first + b) as u16;
+        xs[slot] = s.p_t.x;
+        ys[slot] = s.p_t.y;
+        zs[slot] = s.p_t.z;
+        count += 1;
     }
     count
 }
@@ -689,8 +739,8 @@ fn prunable(dj: Real, db: Real) -> bool {
 }
 
 /// [`best_triangle`] over `window[k]` for `k` in the first `count` entries of
-/// `scratch.listed` (in that order; the origin's place is not listed), bit for bit. The
-/// candidates' points are gathered component by component; one pass, four candidates
+/// `scratch.listed` (in that order; the origin's place is not listed), bit for bit, with
+/// their points in `scratch.kept` as [`list`] wrote them; one pass, four candidates
 /// at a time, finds the second point and drops the candidates outside the side limits,
 /// the other looks for the third point among the rest, four at a time too. Each lane
 /// keeps the earliest of its best; the earliest of the lanes' equal best wins, as a scan
@@ -702,24 +752,14 @@ fn best_triangle_listed(
     scratch: &mut TriangleScratch,
     cfg: &Config,
 ) -> Option<BodyFrame> {
-    const MASK: usize = LISTED_ON_STACK - 1;
     let TriangleScratch {
         listed,
         dist,
         kept: [xs, ys, zs],
     } = scratch;
     let listed = listed.get(..count)?;
-    // `count < LISTED_ON_STACK`, so the masked places never wrap. A NaN coordinate fails
-    // every test below: so are the places after the last candidate (up to a multiple of
-    // four) left out.
-    for (at, &k) in listed.iter().enumerate() {
-        let p = window
-            .get(usize::from(k))
-            .map_or([Real::NAN; 3], |s| s.p_t.into());
-        xs[at & MASK] = p[0];
-        ys[at & MASK] = p[1];
-        zs[at & MASK] = p[2];
-    }
+    // A NaN coordinate fails every test below: so are the places after the last
+    // candidate (up to a multiple of four) left out.
     let fours = count.div_ceil(4);
     for x in xs.get_mut(count..fours * 4).unwrap_or(&mut []) {
         *x = Real::NAN;

@@ -298,6 +298,9 @@ pub fn compute_twists(
 
 /// Pixels counted at once when skipping ahead to the next sample.
 const SKIP_CHUNK_PX: usize = 64;
+/// Pixels counted at once when skipping ahead within a chunk that holds the next sample:
+/// only the parts that hold samples are visited pixel by pixel.
+const SKIP_PART_PX: usize = 8;
 
 /// Rows whose counts of eligible pixels [`sample_pixels`] keeps from its first pass (on
 /// the stack, 2 bytes a row), so that the second skips them whole; rows past these, and
@@ -344,21 +347,56 @@ fn for_each_eligible_from(
                 rank += here;
                 continue;
             }
-            for (i, (&label, &z)) in labels.iter().zip(depths).enumerate() {
-                if label == 0 {
+            // Parts of the chunk before the wanted rank are counted too (a fixed length
+            // counts in a few vector steps); the rest is visited.
+            let x = c * SKIP_CHUNK_PX;
+            let (label_parts, label_rest) = labels.as_chunks::<SKIP_PART_PX>();
+            let (depth_parts, depth_rest) = depths.as_chunks::<SKIP_PART_PX>();
+            for (p, (labels, depths)) in label_parts.iter().zip(depth_parts).enumerate() {
+                let here = u64::from(count_eligible(labels, depths));
+                if rank + here <= from {
+                    rank += here;
                     continue;
                 }
-                let Some(z) = valid_depth(z) else { continue };
-                if rank == from {
-                    match f(c * SKIP_CHUNK_PX + i, y, label, z) {
-                        Some(next) => from = next,
-                        None => return,
-                    }
+                let x = x + p * SKIP_PART_PX;
+                if !visit_eligible(x, y, labels, depths, (&mut rank, &mut from), &mut f) {
+                    return;
                 }
-                rank += 1;
+            }
+            let x = x + label_parts.len() * SKIP_PART_PX;
+            if !visit_eligible(x, y, label_rest, depth_rest, (&mut rank, &mut from), &mut f) {
+                return;
             }
         }
     }
+}
+
+/// [`for_each_eligible_from`] pixel by pixel over a run of row `y` from column `x`:
+/// counts the eligible pixels in `rank` and calls `f` at rank `from`, which it then
+/// moves on; false once `f` returned `None`.
+#[inline]
+fn visit_eligible(
+    x: usize,
+    y: usize,
+    labels: &[u16],
+    depths: &[f32],
+    (rank, from): (&mut u64, &mut u64),
+    f: &mut impl FnMut(usize, usize, u16, Real) -> Option<u64>,
+) -> bool {
+    for (i, (&label, &z)) in labels.iter().zip(depths).enumerate() {
+        if label == 0 {
+            continue;
+        }
+        let Some(z) = valid_depth(z) else { continue };
+        if *rank == *from {
+            match f(x + i, y, label, z) {
+                Some(next) => *from = next,
+                None => return false,
+            }
+        }
+        *rank += 1;
+    }
+    true
 }
 
 /// Stratified seeded sampling; returns how many samples were written (sorted row-major).

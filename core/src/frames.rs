@@ -719,7 +719,7 @@ fn candidate_bits(chunk: &[FrameSample], candidate: impl Fn(&FrameSample) -> boo
         bits << 4 | bit(a) << 3 | bit(b) << 2 | bit(c) << 1 | bit(d)
     });
     let bits = rest.iter().fold(bits, |bits, s| bits << 1 | bit(s));
-    bits.reverse_bits() >> (WORD_BITS - chunk.len()) % WORD_BITS
+    bits.reverse_bits() >> ((WORD_BITS - chunk.len()) % WORD_BITS)
 }
 
 /// Lists sample `at(b)` (place `first + b`) for each set bit `b` of `bits`, from the

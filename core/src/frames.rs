@@ -25,7 +25,7 @@
 use core::{hint::select_unpredictable, ops::RangeInclusive};
 
 use nalgebra::{Point3, Vector3};
-use wide::f32x4;
+use wide::{f32x4, u32x4, u64x2};
 
 use crate::{
     Config, Error, ImageView, Intrinsics, Twist,
@@ -665,9 +665,16 @@ fn build_frame_listing<const CAP: usize>(
         let runs = [(0, before), (own + 1, after)];
         let count = if x_lo < COLUMN_KEY_EXACT_BELOW && x_span < COLUMN_KEY_EXACT_BELOW {
             let (base, span) = (column_key(x_lo, key), u64::from(x_span));
-            list::<CAP>(runs, scratch, |s| s.column_key.wrapping_sub(base) <= span)
+            let one = |s: &FrameSample| s.column_key.wrapping_sub(base) <= span;
+            if KEY_LANES {
+                let low = u32x4::new([x_lo, key, x_lo, key]);
+                let limit = u32x4::new([x_span, 0, x_span, 0]);
+                list::<CAP>(runs, scratch, one, |f| keyed_bits(f, low, limit))
+            } else {
+                list::<CAP>(runs, scratch, one, |f| four_bits(f, one))
+            }
         } else {
-            list::<CAP>(runs, scratch, candidate)
+            list::<CAP>(runs, scratch, candidate, |f| four_bits(f, candidate))
         };
         // At `CAP` the next write already wrapped.
         if count < CAP {
@@ -691,16 +698,17 @@ fn list<const CAP: usize>(
     runs: [(usize, &[FrameSample]); 2],
     scratch: &mut TriangleScratch,
     candidate: impl Fn(&FrameSample) -> bool,
+    four: impl Fn(&[FrameSample; 4]) -> usize,
 ) -> usize {
     let mut count = 0;
     for (start, run) in runs {
         let (words, rest) = run.as_chunks::<WORD_BITS>();
         for (first, word) in (start..).step_by(WORD_BITS).zip(words) {
-            let bits = candidate_bits(word, &candidate);
+            let bits = candidate_bits(word, &candidate, &four);
             count = emit::<CAP>(scratch, count, first, bits, |b| word.get(b % WORD_BITS));
         }
         let first = start + words.len() * WORD_BITS;
-        let bits = candidate_bits(rest, &candidate);
+        let bits = candidate_bits(rest, &candidate, &four);
         count = emit::<CAP>(scratch, count, first, bits, |b| rest.get(b));
     }
     count
@@ -709,18 +717,68 @@ fn list<const CAP: usize>(
 /// Samples whose candidate tests [`list`] packs into one word.
 const WORD_BITS: usize = usize::BITS as usize;
 
-/// Bit `b` set when `chunk[b]` (at most [`WORD_BITS`] samples) passes `candidate`.
+/// Bit `b` set when `chunk[b]` (at most [`WORD_BITS`] samples) passes `candidate`;
+/// `four` gives the bits of four samples at once (the first in bit 0).
 #[inline]
-fn candidate_bits(chunk: &[FrameSample], candidate: impl Fn(&FrameSample) -> bool) -> usize {
-    // First sample in the top bit, then reversed at once; four samples per shift.
-    let bit = |s| usize::from(candidate(s));
+fn candidate_bits(
+    chunk: &[FrameSample],
+    candidate: impl Fn(&FrameSample) -> bool,
+    four: impl Fn(&[FrameSample; 4]) -> usize,
+) -> usize {
+    // Each sample enters at the top and moves down as the later ones enter.
     let (fours, rest) = chunk.as_chunks::<4>();
-    let bits = fours.iter().fold(0usize, |bits, [a, b, c, d]| {
-        bits << 4 | bit(a) << 3 | bit(b) << 2 | bit(c) << 1 | bit(d)
+    let bits = fours
+        .iter()
+        .fold(0usize, |bits, f| bits >> 4 | four(f) << (WORD_BITS - 4));
+    let bits = rest.iter().fold(bits, |bits, s| {
+        bits >> 1 | usize::from(candidate(s)) << (WORD_BITS - 1)
     });
-    let bits = rest.iter().fold(bits, |bits, s| bits << 1 | bit(s));
-    bits.reverse_bits() >> ((WORD_BITS - chunk.len()) % WORD_BITS)
+    bits >> ((WORD_BITS - chunk.len()) % WORD_BITS)
 }
+
+/// The bits of four samples (the first in bit 0), one [`candidate_bits`] test at a time.
+#[inline]
+fn four_bits([a, b, c, d]: &[FrameSample; 4], candidate: impl Fn(&FrameSample) -> bool) -> usize {
+    let bit = |s| usize::from(candidate(s));
+    bit(a) | bit(b) << 1 | bit(c) << 2 | bit(d) << 3
+}
+
+/// Whether [`build_frame`] tests the column keys of samples on vector lanes, two at a
+/// time: only where `wide` has lanes (elsewhere one at a time is cheaper).
+const KEY_LANES: bool = cfg!(all(
+    target_endian = "little",
+    any(
+        target_feature = "sse2",
+        target_feature = "simd128",
+        target_feature = "neon"
+    )
+));
+
+/// [`four_bits`] for the [`column_key`] test, on lanes: a sample's key as its two 32-bit
+/// halves (column, key) less `low` (`x_lo`, the key) must be at most `limit` (the
+/// column span, zero), wrapping; the same test as the one compare of the whole key.
+#[inline]
+fn keyed_bits([a, b, c, d]: &[FrameSample; 4], low: u32x4, limit: u32x4) -> usize {
+    let pair = |a: &FrameSample, b: &FrameSample| {
+        // Little-endian: the low half of each key first.
+        let halves: u32x4 = wide::bytemuck::cast(u64x2::new([a.column_key, b.column_key]));
+        let outside = (halves - low).simd_gt(limit);
+        usize::from(PAIR_INSIDE[outside.to_bitmask() as usize % 16])
+    };
+    pair(a, b) | pair(c, d) << 2
+}
+
+/// For the lanes of two samples that failed [`keyed_bits`]' test (bits 0 and 1 the first
+/// sample's, 2 and 3 the second's), which samples pass (bit 0 the first).
+const PAIR_INSIDE: [u8; 16] = {
+    let mut table = [0; 16];
+    let mut failed = 0;
+    while failed < 16 {
+        table[failed] = (failed & 3 == 0) as u8 | ((failed >> 2 == 0) as u8) << 1;
+        failed += 1;
+    }
+    table
+};
 
 /// Lists sample `at(b)` (place `first + b`) for each set bit `b` of `bits`, from the
 /// lowest, at `count` onwards ([`list`]); returns the new count.

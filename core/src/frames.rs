@@ -1380,6 +1380,37 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// [`keyed_bits`] (two samples a vector) passes exactly the samples that
+        /// [`column_key`]'s one compare passes, near the range's edges, for columns that
+        /// wrap below `x_lo` and for keys that differ a little or a lot.
+        #[test]
+        fn keyed_bits_are_the_one_compare(
+            x_lo in proptest::prop_oneof![0u32..200, (1u32 << 31) - 200..1 << 31],
+            x_span in proptest::prop_oneof![0u32..200, (1u32 << 31) - 200..1 << 31],
+            dx in proptest::array::uniform4(-300i64..300),
+            far in proptest::array::uniform4(proptest::option::weighted(0.2, 0u32..u32::MAX)),
+            keys in proptest::array::uniform4(
+                proptest::prop_oneof![0u32..3, (1u32 << 17) - 3..1 << 17]
+            ),
+            key in proptest::prop_oneof![0u32..3, (1u32 << 17) - 3..1 << 17],
+        ) {
+            let samples: [FrameSample; 4] = core::array::from_fn(|i| {
+                let x = far[i]
+                    .unwrap_or_else(|| (i64::from(x_lo) + dx[i]).clamp(0, (1 << 32) - 1) as u32);
+                FrameSample {
+                    column_key: column_key(x, keys[i]),
+                    ..FrameSample::EMPTY
+                }
+            });
+            let base = column_key(x_lo, key);
+            let one = |s: &FrameSample| s.column_key.wrapping_sub(base) <= u64::from(x_span);
+            let low = u32x4::new([x_lo, key, x_lo, key]);
+            let limit = u32x4::new([x_span, 0, x_span, 0]);
+            proptest::prop_assert_eq!(keyed_bits(&samples, low, limit), four_bits(&samples, one));
+        }
+    }
+
+    proptest::proptest! {
         /// The listed fast path of [`build_frame`], its fallback past the listing's
         /// capacity (reached with a capacity of 8) and that fallback
         /// ([`best_triangle`]) on every window pick the frame the plain scan picks, bit

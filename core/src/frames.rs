@@ -736,7 +736,7 @@ fn candidate_bits(
     bits >> ((WORD_BITS - chunk.len()) % WORD_BITS)
 }
 
-/// The bits of four samples (the first in bit 0), one [`candidate_bits`] test at a time.
+/// The bits of four samples (the first in bit 0), each tested by `candidate`.
 #[inline]
 fn four_bits([a, b, c, d]: &[FrameSample; 4], candidate: impl Fn(&FrameSample) -> bool) -> usize {
     let bit = |s| usize::from(candidate(s));
@@ -744,7 +744,8 @@ fn four_bits([a, b, c, d]: &[FrameSample; 4], candidate: impl Fn(&FrameSample) -
 }
 
 /// Whether [`build_frame`] tests the column keys of samples on vector lanes, two at a
-/// time: only where `wide` has lanes (elsewhere one at a time is cheaper).
+/// time: only where `wide` has lanes (elsewhere it would run them one by one) and the
+/// low half of a `u64` comes first.
 const KEY_LANES: bool = cfg!(all(
     target_endian = "little",
     any(

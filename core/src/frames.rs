@@ -25,7 +25,7 @@
 use core::{hint::select_unpredictable, ops::RangeInclusive};
 
 use nalgebra::{Point3, Vector3};
-use wide::f32x4;
+use wide::{f32x4, u32x4, u64x2};
 
 use crate::{
     Config, Error, ImageView, Intrinsics, Twist,
@@ -298,6 +298,9 @@ pub fn compute_twists(
 
 /// Pixels counted at once when skipping ahead to the next sample.
 const SKIP_CHUNK_PX: usize = 64;
+/// Pixels counted at once when skipping ahead within a chunk that holds the next sample:
+/// only the parts that hold samples are visited pixel by pixel.
+const SKIP_PART_PX: usize = 8;
 
 /// Rows whose counts of eligible pixels [`sample_pixels`] keeps from its first pass (on
 /// the stack, 2 bytes a row), so that the second skips them whole; rows past these, and
@@ -344,21 +347,56 @@ fn for_each_eligible_from(
                 rank += here;
                 continue;
             }
-            for (i, (&label, &z)) in labels.iter().zip(depths).enumerate() {
-                if label == 0 {
+            // Parts of the chunk before the wanted rank are counted too (a fixed length
+            // counts in a few vector steps); the rest is visited.
+            let x = c * SKIP_CHUNK_PX;
+            let (label_parts, label_rest) = labels.as_chunks::<SKIP_PART_PX>();
+            let (depth_parts, depth_rest) = depths.as_chunks::<SKIP_PART_PX>();
+            for (p, (labels, depths)) in label_parts.iter().zip(depth_parts).enumerate() {
+                let here = u64::from(count_eligible(labels, depths));
+                if rank + here <= from {
+                    rank += here;
                     continue;
                 }
-                let Some(z) = valid_depth(z) else { continue };
-                if rank == from {
-                    match f(c * SKIP_CHUNK_PX + i, y, label, z) {
-                        Some(next) => from = next,
-                        None => return,
-                    }
+                let x = x + p * SKIP_PART_PX;
+                if !visit_eligible(x, y, labels, depths, (&mut rank, &mut from), &mut f) {
+                    return;
                 }
-                rank += 1;
+            }
+            let x = x + label_parts.len() * SKIP_PART_PX;
+            if !visit_eligible(x, y, label_rest, depth_rest, (&mut rank, &mut from), &mut f) {
+                return;
             }
         }
     }
+}
+
+/// [`for_each_eligible_from`] pixel by pixel over a run of row `y` from column `x`:
+/// counts the eligible pixels in `rank` and calls `f` at rank `from`, which it then
+/// moves on; false once `f` returned `None`.
+#[inline]
+fn visit_eligible(
+    x: usize,
+    y: usize,
+    labels: &[u16],
+    depths: &[f32],
+    (rank, from): (&mut u64, &mut u64),
+    f: &mut impl FnMut(usize, usize, u16, Real) -> Option<u64>,
+) -> bool {
+    for (i, (&label, &z)) in labels.iter().zip(depths).enumerate() {
+        if label == 0 {
+            continue;
+        }
+        let Some(z) = valid_depth(z) else { continue };
+        if *rank == *from {
+            match f(x + i, y, label, z) {
+                Some(next) => *from = next,
+                None => return false,
+            }
+        }
+        *rank += 1;
+    }
+    true
 }
 
 /// Stratified seeded sampling; returns how many samples were written (sorted row-major).
@@ -625,12 +663,18 @@ fn build_frame_listing<const CAP: usize>(
         let (before, from_own) = window.split_at(own);
         let after = from_own.get(1..).unwrap_or(&[]);
         let runs = [(0, before), (own + 1, after)];
-        let listed = &mut scratch.listed;
         let count = if x_lo < COLUMN_KEY_EXACT_BELOW && x_span < COLUMN_KEY_EXACT_BELOW {
             let (base, span) = (column_key(x_lo, key), u64::from(x_span));
-            list::<CAP>(runs, listed, |s| s.column_key.wrapping_sub(base) <= span)
+            let one = |s: &FrameSample| s.column_key.wrapping_sub(base) <= span;
+            if KEY_LANES {
+                let low = u32x4::new([x_lo, key, x_lo, key]);
+                let limit = u32x4::new([x_span, 0, x_span, 0]);
+                list::<CAP>(runs, scratch, one, |f| keyed_bits(f, low, limit))
+            } else {
+                list::<CAP>(runs, scratch, one, |f| four_bits(f, one))
+            }
         } else {
-            list::<CAP>(runs, listed, candidate)
+            list::<CAP>(runs, scratch, candidate, |f| four_bits(f, candidate))
         };
         // At `CAP` the next write already wrapped.
         if count < CAP {
@@ -645,20 +689,123 @@ fn build_frame_listing<const CAP: usize>(
 }
 
 /// Writes the places of the samples of `runs` (each with its first place) that pass
-/// `candidate` to `listed`, without a branch per sample; returns how many passed. A
+/// `candidate` to `scratch.listed`, and their points at `t` to `scratch.kept`, in order;
+/// returns how many passed. The test runs without a branch per sample: the results of a
+/// word of [`WORD_BITS`] samples are packed first, then only its set bits are visited. A
 /// write at `CAP` wraps (see [`build_frame_listing`]).
 #[inline]
 fn list<const CAP: usize>(
     runs: [(usize, &[FrameSample]); 2],
-    listed: &mut [u16; LISTED_ON_STACK],
+    scratch: &mut TriangleScratch,
     candidate: impl Fn(&FrameSample) -> bool,
+    four: impl Fn(&[FrameSample; 4]) -> usize,
 ) -> usize {
     let mut count = 0;
     for (start, run) in runs {
-        for (k, s) in (start..).zip(run) {
-            listed[count & (CAP - 1)] = k as u16;
-            count += usize::from(candidate(s));
+        let (words, rest) = run.as_chunks::<WORD_BITS>();
+        for (first, word) in (start..).step_by(WORD_BITS).zip(words) {
+            let bits = candidate_bits(word, &candidate, &four);
+            count = emit::<CAP>(scratch, count, first, bits, |b| word.get(b % WORD_BITS));
         }
+        let first = start + words.len() * WORD_BITS;
+        let bits = candidate_bits(rest, &candidate, &four);
+        count = emit::<CAP>(scratch, count, first, bits, |b| rest.get(b));
+    }
+    count
+}
+
+/// Samples whose candidate tests [`list`] packs into one word.
+const WORD_BITS: usize = usize::BITS as usize;
+
+/// Bit `b` set when `chunk[b]` (at most [`WORD_BITS`] samples) passes `candidate`;
+/// `four` gives the bits of four samples at once (the first in bit 0).
+#[inline]
+fn candidate_bits(
+    chunk: &[FrameSample],
+    candidate: impl Fn(&FrameSample) -> bool,
+    four: impl Fn(&[FrameSample; 4]) -> usize,
+) -> usize {
+    // Each sample enters at the top and moves down as the later ones enter.
+    let (fours, rest) = chunk.as_chunks::<4>();
+    let bits = fours
+        .iter()
+        .fold(0usize, |bits, f| bits >> 4 | four(f) << (WORD_BITS - 4));
+    let bits = rest.iter().fold(bits, |bits, s| {
+        bits >> 1 | usize::from(candidate(s)) << (WORD_BITS - 1)
+    });
+    bits >> ((WORD_BITS - chunk.len()) % WORD_BITS)
+}
+
+/// The bits of four samples (the first in bit 0), each tested by `candidate`.
+#[inline]
+fn four_bits([a, b, c, d]: &[FrameSample; 4], candidate: impl Fn(&FrameSample) -> bool) -> usize {
+    let bit = |s| usize::from(candidate(s));
+    bit(a) | bit(b) << 1 | bit(c) << 2 | bit(d) << 3
+}
+
+/// Whether [`build_frame`] tests the column keys of samples on vector lanes, two at a
+/// time: only where `wide` has lanes (elsewhere it would run them one by one) and the
+/// low half of a `u64` comes first.
+const KEY_LANES: bool = cfg!(all(
+    target_endian = "little",
+    any(
+        target_feature = "sse2",
+        target_feature = "simd128",
+        target_feature = "neon"
+    )
+));
+
+/// [`four_bits`] for the [`column_key`] test, on lanes: a sample's key as its two 32-bit
+/// halves (column, key) less `low` (`x_lo`, the key) must be at most `limit` (the
+/// column span, zero), wrapping; the same test as the one compare of the whole key.
+#[inline]
+fn keyed_bits([a, b, c, d]: &[FrameSample; 4], low: u32x4, limit: u32x4) -> usize {
+    let pair = |a: &FrameSample, b: &FrameSample| {
+        // Little-endian: the low half of each key first.
+        let halves: u32x4 = wide::bytemuck::cast(u64x2::new([a.column_key, b.column_key]));
+        let outside = (halves - low).simd_gt(limit);
+        usize::from(PAIR_INSIDE[outside.to_bitmask() as usize % 16])
+    };
+    pair(a, b) | pair(c, d) << 2
+}
+
+/// For the lanes of two samples that failed [`keyed_bits`]' test (bits 0 and 1 the first
+/// sample's, 2 and 3 the second's), which samples pass (bit 0 the first).
+const PAIR_INSIDE: [u8; 16] = {
+    let mut table = [0; 16];
+    let mut failed = 0;
+    while failed < 16 {
+        table[failed] = (failed & 3 == 0) as u8 | ((failed >> 2 == 0) as u8) << 1;
+        failed += 1;
+    }
+    table
+};
+
+/// Lists sample `at(b)` (place `first + b`) for each set bit `b` of `bits`, from the
+/// lowest, at `count` onwards ([`list`]); returns the new count.
+#[inline]
+fn emit<'s, const CAP: usize>(
+    scratch: &mut TriangleScratch,
+    mut count: usize,
+    first: usize,
+    mut bits: usize,
+    at: impl Fn(usize) -> Option<&'s FrameSample>,
+) -> usize {
+    let TriangleScratch {
+        listed,
+        kept: [xs, ys, zs],
+        ..
+    } = scratch;
+    while bits != 0 {
+        let b = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        let Some(s) = at(b) else { break };
+        let slot = count & (CAP - 1);
+        listed[slot] = (first + b) as u16;
+        xs[slot] = s.p_t.x;
+        ys[slot] = s.p_t.y;
+        zs[slot] = s.p_t.z;
+        count += 1;
     }
     count
 }
@@ -689,8 +836,8 @@ fn prunable(dj: Real, db: Real) -> bool {
 }
 
 /// [`best_triangle`] over `window[k]` for `k` in the first `count` entries of
-/// `scratch.listed` (in that order; the origin's place is not listed), bit for bit. The
-/// candidates' points are gathered component by component; one pass, four candidates
+/// `scratch.listed` (in that order; the origin's place is not listed), bit for bit, with
+/// their points in `scratch.kept` as [`list`] wrote them; one pass, four candidates
 /// at a time, finds the second point and drops the candidates outside the side limits,
 /// the other looks for the third point among the rest, four at a time too. Each lane
 /// keeps the earliest of its best; the earliest of the lanes' equal best wins, as a scan
@@ -702,24 +849,14 @@ fn best_triangle_listed(
     scratch: &mut TriangleScratch,
     cfg: &Config,
 ) -> Option<BodyFrame> {
-    const MASK: usize = LISTED_ON_STACK - 1;
     let TriangleScratch {
         listed,
         dist,
         kept: [xs, ys, zs],
     } = scratch;
     let listed = listed.get(..count)?;
-    // `count < LISTED_ON_STACK`, so the masked places never wrap. A NaN coordinate fails
-    // every test below: so are the places after the last candidate (up to a multiple of
-    // four) left out.
-    for (at, &k) in listed.iter().enumerate() {
-        let p = window
-            .get(usize::from(k))
-            .map_or([Real::NAN; 3], |s| s.p_t.into());
-        xs[at & MASK] = p[0];
-        ys[at & MASK] = p[1];
-        zs[at & MASK] = p[2];
-    }
+    // A NaN coordinate fails every test below: so are the places after the last
+    // candidate (up to a multiple of four) left out.
     let fours = count.div_ceil(4);
     for x in xs.get_mut(count..fours * 4).unwrap_or(&mut []) {
         *x = Real::NAN;
@@ -1240,6 +1377,37 @@ mod tests {
                 <= u64::from(x_span);
             let two = x.wrapping_sub(x_lo) <= x_span && other == key;
             proptest::prop_assert_eq!(one, two);
+        }
+    }
+
+    proptest::proptest! {
+        /// [`keyed_bits`] (two samples a vector) passes exactly the samples that
+        /// [`column_key`]'s one compare passes, near the range's edges, for columns that
+        /// wrap below `x_lo` and for keys that differ a little or a lot.
+        #[test]
+        fn keyed_bits_are_the_one_compare(
+            x_lo in proptest::prop_oneof![0u32..200, (1u32 << 31) - 200..1 << 31],
+            x_span in proptest::prop_oneof![0u32..200, (1u32 << 31) - 200..1 << 31],
+            dx in proptest::array::uniform4(-300i64..300),
+            far in proptest::array::uniform4(proptest::option::weighted(0.2, 0u32..u32::MAX)),
+            keys in proptest::array::uniform4(
+                proptest::prop_oneof![0u32..3, (1u32 << 17) - 3..1 << 17]
+            ),
+            key in proptest::prop_oneof![0u32..3, (1u32 << 17) - 3..1 << 17],
+        ) {
+            let samples: [FrameSample; 4] = core::array::from_fn(|i| {
+                let x = far[i]
+                    .unwrap_or_else(|| (i64::from(x_lo) + dx[i]).clamp(0, (1 << 32) - 1) as u32);
+                FrameSample {
+                    column_key: column_key(x, keys[i]),
+                    ..FrameSample::EMPTY
+                }
+            });
+            let base = column_key(x_lo, key);
+            let one = |s: &FrameSample| s.column_key.wrapping_sub(base) <= u64::from(x_span);
+            let low = u32x4::new([x_lo, key, x_lo, key]);
+            let limit = u32x4::new([x_span, 0, x_span, 0]);
+            proptest::prop_assert_eq!(keyed_bits(&samples, low, limit), four_bits(&samples, one));
         }
     }
 

@@ -723,8 +723,118 @@ impl PixelBatch {
         k: &Intrinsics,
         tol2: Real,
     ) -> [u32; PIXEL_LANES] {
-        let [px, py, pz] = self.p.map(f32x8::new);
-        let [ou, ov] = self.observed.map(f32x8::new);
+        let [px, py, pz] = self.p;
+        let [ou, ov] = self.observed;
+        let lanes = ObservedLanes {
+            p: [f32x8::new(px), f32x8::new(py), f32x8::new(pz)],
+            observed: [f32x8::new(ou), f32x8::new(ov)],
+        };
+        lanes.decide(candidates, motions, k, tol2)
+    }
+}
+
+/// [`PIXEL_LANES`] observed pixels as vector lanes: back-projected source points at `t`
+/// (`x`, `y`, `z`) and observed pixels at `t+1` (`u`, `v`).
+#[derive(Debug, Clone, Copy)]
+struct ObservedLanes {
+    p: [f32x8; 3],
+    observed: [f32x8; 2],
+}
+
+impl ObservedLanes {
+    /// The observations of eight pixels with sources `sources` (packed pixels at `t`, or
+    /// [`NONE`]), and a bit mask of the lanes that have one: as `decide_pixels`'s
+    /// per-pixel rule computes them (the same operations per lane, so the same bits), with
+    /// the depth test done on all lanes at once. Lanes without an observation hold
+    /// values to be dropped.
+    fn gather(
+        input: &MotionInput<'_>,
+        (inv_fx, inv_fy): (Real, Real),
+        sources: &[u32; PIXEL_LANES],
+    ) -> (Self, u32) {
+        let [u, v, z, dx, dy] = Self::source_lanes(input, sources);
+        let k = input.intrinsics;
+        let splat = f32x8::splat;
+        // valid_depth on each lane: NaN fails both comparisons, infinities one.
+        let seen = (z.simd_gt(f32x8::ZERO) & z.simd_le(splat(MAX_DEPTH_M))).to_bitmask();
+        let lanes = Self {
+            p: [
+                (u - splat(k.cx)) * z * splat(inv_fx),
+                (v - splat(k.cy)) * z * splat(inv_fy),
+                z,
+            ],
+            observed: [u + dx, v + dy],
+        };
+        (lanes, seen)
+    }
+
+    /// Source column, row, depth and flow of each of eight pixels; depth `0` where a
+    /// lookup fails.
+    fn source_lanes(input: &MotionInput<'_>, sources: &[u32; PIXEL_LANES]) -> [f32x8; 5] {
+        // Where a push or a pan moved a whole stretch of pixels alike (most batches),
+        // the eight sources are eight neighbours along one row at `t`: their depths and
+        // flows are read as two slices, not pixel by pixel. (Lane `l` holding `s0 + l`
+        // is eight pixels of one row when the row's slice exists: a column carried into
+        // the row bits would lie past the row's end, as sides are below 2^16.)
+        let [s0, ..] = *sources;
+        let run = sources
+            .iter()
+            .zip(0u32..)
+            .fold(true, |run, (&s, l)| run & (s == s0.wrapping_add(l)));
+        let (sx, sy) = Grid::unpack(s0);
+        let row = |y| {
+            let depth = input.depth_t.row(y)?.get(sx..sx + PIXEL_LANES)?;
+            let flow = input.flow.row(y)?.get(sx..sx + PIXEL_LANES)?;
+            Some((
+                <&[Real; PIXEL_LANES]>::try_from(depth).ok()?,
+                <&[[Real; 2]; PIXEL_LANES]>::try_from(flow).ok()?,
+            ))
+        };
+        if run && let Some((depth, flow)) = row(sy) {
+            // Exact: coordinates below 2^16.
+            let u = f32x8::splat(Real::from(sx as u16))
+                + f32x8::new([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
+            return [
+                u,
+                f32x8::splat(Real::from(sy as u16)),
+                f32x8::new(*depth),
+                f32x8::new(flow.map(|f| f[0])),
+                f32x8::new(flow.map(|f| f[1])),
+            ];
+        }
+        let [mut u, mut v, mut z, mut dx, mut dy] = [[0.0; PIXEL_LANES]; 5];
+        // The unpacked `NONE` is (0xFFFF, 0xFFFF), outside every image (sides are at most
+        // `MAX_SIDE_PX`), so its lookups fail and its depth stays 0: no observation.
+        for (lane, &s) in sources.iter().enumerate() {
+            let (sx, sy) = Grid::unpack(s);
+            if let (Some(&depth), Some(&[fx, fy])) =
+                (input.depth_t.get(sx, sy), input.flow.get(sx, sy))
+                && let (Some(ul), Some(vl), Some(zl), Some(dxl), Some(dyl)) = (
+                    u.get_mut(lane),
+                    v.get_mut(lane),
+                    z.get_mut(lane),
+                    dx.get_mut(lane),
+                    dy.get_mut(lane),
+                )
+            {
+                // Exact: coordinates below 2^16.
+                (*ul, *vl) = (Real::from(sx as u16), Real::from(sy as u16));
+                (*zl, *dxl, *dyl) = (depth, fx, fy);
+            }
+        }
+        [u, v, z, dx, dy].map(f32x8::new)
+    }
+
+    /// Each lane's decision, as [`PixelBatch::decide`] says.
+    fn decide(
+        &self,
+        candidates: &[SegmentSeeds],
+        motions: &[Pose],
+        k: &Intrinsics,
+        tol2: Real,
+    ) -> [u32; PIXEL_LANES] {
+        let [px, py, pz] = self.p;
+        let [ou, ov] = self.observed;
         let two = f32x8::splat(2.0);
         let (fx, fy, cx, cy) = (
             f32x8::splat(k.fx),
@@ -819,7 +929,6 @@ fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, ke
     // A segment whose pixels all close (background, or fewer than two entries): runs of
     // it close eight pixels at once.
     let mut closed = 0u32;
-    let mut lanes = PixelBatch::EMPTY;
     for (c, (seg_chunk, source_chunk)) in segment
         .chunks(RUN_LANES)
         .zip(source.chunks(RUN_LANES))
@@ -832,11 +941,10 @@ fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, ke
             }
             continue;
         }
-        // Eight pixels of one segment (most of a split segment's chunks): decided as one
-        // batch of their own, lane by lane, with no bookkeeping per pixel (a lane's
-        // decision does not depend on the other lanes). Fixed-size arrays, so the lane
-        // loops unroll without bounds checks; `lanes` is reused, as an unobserved lane's
-        // decision is dropped whatever pixel it holds.
+        // Eight pixels of one segment (most of a split segment's chunks): observed and
+        // decided as one batch of their own, lane by lane, with no bookkeeping per pixel
+        // (a lane's decision does not depend on the other lanes). Fixed-size arrays, so
+        // the lane loops unroll without bounds checks.
         let seg = seg_chunk.first().copied().unwrap_or(0);
         if seg_chunk.len() == PIXEL_LANES
             && all_equal(seg_chunk, seg)
@@ -851,16 +959,10 @@ fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, ke
                 closed = seg;
                 continue;
             }
-            let mut observed = [false; PIXEL_LANES];
-            for (lane, (&s, seen)) in sources.iter().zip(&mut observed).enumerate() {
-                if let Some((p, o)) = observe(s) {
-                    lanes.set(lane, j0 + lane, p, o);
-                    *seen = true;
-                }
-            }
+            let (lanes, seen) = ObservedLanes::gather(input, (inv_fx, inv_fy), sources);
             let decisions = lanes.decide(candidates, motions, &k, tol2);
-            for ((slot, &d), &seen) in slots.iter_mut().zip(&decisions).zip(&observed) {
-                *slot = if seen {
+            for (lane, (slot, &d)) in slots.iter_mut().zip(&decisions).enumerate() {
+                *slot = if seen >> lane & 1 != 0 {
                     Growth::decided(seg, d)
                 } else {
                     Growth::open(seg, HOLE)

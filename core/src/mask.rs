@@ -1167,36 +1167,44 @@ fn splat(
         ) else {
             continue;
         };
-        // Most of the image is background at `t`: skip it a chunk at a time.
-        for (c, labels) in labels.chunks(SPLAT_CHUNK).enumerate() {
-            if all_background(labels) {
+        // Most of the image is background at `t`: skip it a block, then a chunk, at a
+        // time.
+        for (b, block) in labels.chunks(SPLAT_BLOCK).enumerate() {
+            if let Ok(block) = <&[u16; SPLAT_BLOCK]>::try_from(block)
+                && block.iter().fold(0, |any, &l| any | l) == 0
+            {
                 continue;
             }
-            let x0 = c * SPLAT_CHUNK;
-            let (Some(depths), Some(flows)) = (
-                depths.get(x0..x0 + labels.len()),
-                flows.get(x0..x0 + labels.len()),
-            ) else {
-                continue;
-            };
-            let mut x = x0;
-            for ((labels, depths), flows) in labels
-                .chunks(SPLAT_LANES)
-                .zip(depths.chunks(SPLAT_LANES))
-                .zip(flows.chunks(SPLAT_LANES))
-            {
-                if let (Ok(l), Ok(d), Ok(f)) =
-                    (labels.try_into(), depths.try_into(), flows.try_into())
-                {
-                    target.eight(x, y, l, d, f);
-                } else {
-                    for (i, ((&label, &z), &flow)) in
-                        labels.iter().zip(depths).zip(flows).enumerate()
-                    {
-                        target.pixel(x + i, y, label, z, flow);
-                    }
+            for (c, labels) in block.chunks(SPLAT_CHUNK).enumerate() {
+                if all_background(labels) {
+                    continue;
                 }
-                x += SPLAT_LANES;
+                let x0 = b * SPLAT_BLOCK + c * SPLAT_CHUNK;
+                let (Some(depths), Some(flows)) = (
+                    depths.get(x0..x0 + labels.len()),
+                    flows.get(x0..x0 + labels.len()),
+                ) else {
+                    continue;
+                };
+                let mut x = x0;
+                for ((labels, depths), flows) in labels
+                    .chunks(SPLAT_LANES)
+                    .zip(depths.chunks(SPLAT_LANES))
+                    .zip(flows.chunks(SPLAT_LANES))
+                {
+                    if let (Ok(l), Ok(d), Ok(f)) =
+                        (labels.try_into(), depths.try_into(), flows.try_into())
+                    {
+                        target.eight(x, y, l, d, f);
+                    } else {
+                        for (i, ((&label, &z), &flow)) in
+                            labels.iter().zip(depths).zip(flows).enumerate()
+                        {
+                            target.pixel(x + i, y, label, z, flow);
+                        }
+                    }
+                    x += SPLAT_LANES;
+                }
             }
         }
     }
@@ -1204,6 +1212,11 @@ fn splat(
 
 /// Pixels of a label row [`splat`] skips at once when all are background.
 const SPLAT_CHUNK: usize = 16;
+
+/// Pixels of a label row [`splat`] tests first, as one branch-free test (it vectorises):
+/// 0.14 to 0.17 M fewer instructions a 640×480 step in callgrind than 16-label chunks
+/// alone. A multiple of [`SPLAT_CHUNK`].
+const SPLAT_BLOCK: usize = 4 * SPLAT_CHUNK;
 
 /// Whether every label of `labels` is background (branch-free on [`SPLAT_CHUNK`] labels,
 /// so it vectorises: on a slice of unknown length the same fold ran one label at a time,

@@ -803,20 +803,25 @@ impl ObservedLanes {
             ];
         }
         let [mut u, mut v, mut z, mut dx, mut dy] = [[0.0; PIXEL_LANES]; 5];
-        // The unpacked `NONE` is (0xFFFF, 0xFFFF), outside every image (sides are at most
-        // `MAX_SIDE_PX`), so its lookups fail and its depth stays 0: no observation.
-        for (lane, &s) in sources.iter().enumerate() {
+        // Otherwise the lanes mostly share one or two source rows (a turn): a row's slices
+        // are looked up when the row changes. The unpacked `NONE` is (0xFFFF, 0xFFFF),
+        // outside every image (sides are at most `MAX_SIDE_PX`), so its lookups fail and
+        // its depth stays 0: no observation.
+        let mut rows: (usize, &[Real], &[[Real; 2]]) = (usize::MAX, &[], &[]);
+        for ((&s, (ul, vl)), (zl, (dxl, dyl))) in sources
+            .iter()
+            .zip(u.iter_mut().zip(&mut v))
+            .zip(z.iter_mut().zip(dx.iter_mut().zip(&mut dy)))
+        {
             let (sx, sy) = Grid::unpack(s);
-            if let (Some(&depth), Some(&[fx, fy])) =
-                (input.depth_t.get(sx, sy), input.flow.get(sx, sy))
-                && let (Some(ul), Some(vl), Some(zl), Some(dxl), Some(dyl)) = (
-                    u.get_mut(lane),
-                    v.get_mut(lane),
-                    z.get_mut(lane),
-                    dx.get_mut(lane),
-                    dy.get_mut(lane),
-                )
-            {
+            if sy != rows.0 {
+                rows = (
+                    sy,
+                    input.depth_t.row(sy).unwrap_or(&[]),
+                    input.flow.row(sy).unwrap_or(&[]),
+                );
+            }
+            if let (Some(&depth), Some(&[fx, fy])) = (rows.1.get(sx), rows.2.get(sx)) {
                 // Exact: coordinates below 2^16.
                 (*ul, *vl) = (Real::from(sx as u16), Real::from(sy as u16));
                 (*zl, *dxl, *dyl) = (depth, fx, fy);

@@ -729,8 +729,53 @@ impl PixelBatch {
             p: [f32x8::new(px), f32x8::new(py), f32x8::new(pz)],
             observed: [f32x8::new(ou), f32x8::new(ov)],
         };
-        lanes.decide(candidates, motions, k, tol2)
+        let moves = candidates
+            .iter()
+            .filter_map(|entry| CandidateMotion::of(entry, motions));
+        lanes.decide(moves, k, tol2)
     }
+}
+
+/// A candidate group's motion as [`ObservedLanes::decide`] applies it, read from its
+/// [`Pose`] once per segment rather than once per batch.
+#[derive(Debug, Clone, Copy, Default)]
+struct CandidateMotion {
+    /// Rotation quaternion: `i`, `j`, `k`, `w`.
+    q: [Real; 4],
+    /// Translation.
+    t: [Real; 3],
+    /// The candidate's claim (`group + 1`), exact as a float: below 2^16.
+    claim: Real,
+    /// Whether the motion is the identity (see [`ObservedLanes::decide`]).
+    still: bool,
+}
+
+impl CandidateMotion {
+    /// The motion of seed entry `entry`'s group; `None` if `motions` has none.
+    fn of(entry: &SegmentSeeds, motions: &[Pose]) -> Option<Self> {
+        let m = motions.get(entry.group as usize)?;
+        let q = m.rotation.quaternion();
+        let t = m.translation.vector;
+        Some(Self {
+            q: [q.i, q.j, q.k, q.w],
+            t: [t.x, t.y, t.z],
+            claim: (entry.group + 1) as Real,
+            still: q.w == 1.0 && [q.i, q.j, q.k, t.x, t.y, t.z] == [0.0; 6],
+        })
+    }
+}
+
+/// Most candidates of one segment whose motions [`decide_pixels`] keeps at hand; a
+/// segment with more reads them per batch.
+const HELD_CANDIDATES: usize = 8;
+
+/// The candidates' motions of the segment last decided, in entry order.
+struct HeldMotions {
+    /// The segment, `0` for none.
+    seg: u32,
+    /// Motions held, `usize::MAX` if the segment's are not.
+    len: usize,
+    motions: [CandidateMotion; HELD_CANDIDATES],
 }
 
 /// [`PIXEL_LANES`] observed pixels as vector lanes: back-projected source points at `t`
@@ -830,11 +875,11 @@ impl ObservedLanes {
         [u, v, z, dx, dy].map(f32x8::new)
     }
 
-    /// Each lane's decision, as [`PixelBatch::decide`] says.
+    /// Each lane's decision against the candidates' motions `moves`, in entry order, as
+    /// [`PixelBatch::decide`] says.
     fn decide(
         &self,
-        candidates: &[SegmentSeeds],
-        motions: &[Pose],
+        moves: impl IntoIterator<Item = CandidateMotion>,
         k: &Intrinsics,
         tol2: Real,
     ) -> [u32; PIXEL_LANES] {
@@ -851,22 +896,16 @@ impl ObservedLanes {
         let mut best = f32x8::splat(tol2);
         // Claims are below 2^16, exact as f32.
         let mut best_claim = f32x8::ZERO;
-        for entry in candidates {
-            let Some(m) = motions.get(entry.group as usize) else {
-                continue;
-            };
-            let q = m.rotation.quaternion();
-            let t = m.translation.vector;
+        for m in moves {
             // The identity (every group that did not move) leaves a finite point as it is:
             // each sum of the general form below adds zeros to it, so only the sign of a
             // zero coordinate can differ, and that never reaches the residual (a test
             // checks the decisions).
-            let still = q.w == 1.0 && [q.i, q.j, q.k, t.x, t.y, t.z] == [0.0; 6];
-            let (x, y, z) = if still {
+            let (x, y, z) = if m.still {
                 (px, py, pz)
             } else {
-                let [qi, qj, qk, qw] = [q.i, q.j, q.k, q.w].map(f32x8::splat);
-                let [tx, ty, tz] = [t.x, t.y, t.z].map(f32x8::splat);
+                let [qi, qj, qk, qw] = m.q.map(f32x8::splat);
+                let [tx, ty, tz] = m.t.map(f32x8::splat);
                 let ax = (qj * pz - qk * py) * two;
                 let ay = (qk * px - qi * pz) * two;
                 let az = (qi * py - qj * px) * two;
@@ -882,7 +921,7 @@ impl ObservedLanes {
             let r2 = ex * ex + ey * ey;
             let take = z.simd_gt(front) & r2.simd_le(best);
             best = take.select(r2, best);
-            best_claim = take.select(f32x8::splat((entry.group + 1) as Real), best_claim);
+            best_claim = take.select(f32x8::splat(m.claim), best_claim);
         }
         // Exact: the claims are integers below 2^16.
         best_claim.fast_trunc_int().to_array().map(|c| c as u32)
@@ -931,6 +970,11 @@ fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, ke
         }
         batch.len = 0;
     };
+    let mut held = HeldMotions {
+        seg: 0,
+        len: 0,
+        motions: [CandidateMotion::default(); HELD_CANDIDATES],
+    };
     // A segment whose pixels all close (background, or fewer than two entries): runs of
     // it close eight pixels at once.
     let mut closed = 0u32;
@@ -964,8 +1008,34 @@ fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, ke
                 closed = seg;
                 continue;
             }
+            if held.seg != seg {
+                held.seg = seg;
+                // `usize::MAX` (no slice): the segment's motions are read per batch.
+                held.len = usize::MAX;
+                if candidates.len() <= HELD_CANDIDATES
+                    && candidates
+                        .iter()
+                        .zip(&mut held.motions)
+                        .all(|(entry, slot)| {
+                            CandidateMotion::of(entry, motions)
+                                .map(|m| *slot = m)
+                                .is_some()
+                        })
+                {
+                    held.len = candidates.len();
+                }
+            }
             let (lanes, seen) = ObservedLanes::gather(input, (inv_fx, inv_fy), sources);
-            let decisions = lanes.decide(candidates, motions, &k, tol2);
+            let decisions = match held.motions.get(..held.len) {
+                Some(moves) => lanes.decide(moves.iter().copied(), &k, tol2),
+                None => lanes.decide(
+                    candidates
+                        .iter()
+                        .filter_map(|entry| CandidateMotion::of(entry, motions)),
+                    &k,
+                    tol2,
+                ),
+            };
             for (lane, (slot, &d)) in slots.iter_mut().zip(&decisions).enumerate() {
                 *slot = if seen >> lane & 1 != 0 {
                     Growth::decided(seg, d)

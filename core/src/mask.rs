@@ -521,6 +521,8 @@ fn grow_regions(
     // seed 1), so deciding them in a batch costs less than deciding each on first reach.
     decide_pixels(input, cfg, regions, key);
     let mut tail = 0;
+    // Consecutive seeds often fall in one segment: the last segment's entries are kept.
+    let mut entries = SegmentEntries::new(seeds);
     for (frame, &g) in groups.frames.iter().zip(groups.frame_group) {
         let Some(g) = seed_group(groups, g) else {
             continue;
@@ -530,7 +532,7 @@ fn grow_regions(
                 continue;
             };
             let seg = segment.get(i).copied().unwrap_or(0);
-            let run = groups_in(seeds, seg);
+            let run = entries.of(seg);
             if seg == 0 || run.len() < 2 || !run.iter().any(|s| s.group == u32::from(g)) {
                 continue;
             }

@@ -2861,6 +2861,76 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        /// The eight-pixel gather observes each lane as the per-pixel rule does, bit for
+        /// bit, whichever way the sources lie: eight neighbours along a row (also at the
+        /// row's end, where the slice is short), a few rows, anywhere, or none; depth and
+        /// flow views with strides of their own.
+        #[test]
+        fn gathered_lanes_observe_as_pixel_by_pixel(seed in proptest::prelude::any::<u64>()) {
+            use crate::rng::Pcg32;
+            let mut rng = Pcg32::new(seed);
+            let (w, h) = (1 + rng.below(40) as usize, 1 + rng.below(8) as usize);
+            let (depth_stride, flow_stride) = (w + rng.below(3) as usize, w + rng.below(3) as usize);
+            let depth: Vec<Real> = (0..h * depth_stride)
+                .map(|_| match rng.below(10) {
+                    0 => 0.0,
+                    1 => Real::NAN,
+                    _ => 0.3 + rng.unit(),
+                })
+                .collect();
+            let flow: Vec<[Real; 2]> = (0..h * flow_stride)
+                .map(|_| [8.0 * rng.unit() - 4.0, 8.0 * rng.unit() - 4.0])
+                .collect();
+            let labels = vec![1u16; w * h];
+            let input = MotionInput::new(
+                ImageView::packed(w, h, &labels).unwrap(),
+                ImageView::new(w, h, depth_stride, &depth).unwrap(),
+                ImageView::new(w, h, depth_stride, &depth).unwrap(),
+                ImageView::new(w, h, flow_stride, &flow).unwrap(),
+                Intrinsics::new(60.0, 61.0, w as Real / 2.0, h as Real / 2.0).unwrap(),
+            )
+            .unwrap();
+            let k = input.intrinsics;
+            let (x0, y0) = (rng.below(w as u32) as usize, rng.below(h as u32) as usize);
+            let mut sources = [0u32; PIXEL_LANES];
+            let mode = rng.below(4);
+            for (l, s) in sources.iter_mut().enumerate() {
+                *s = match mode {
+                    // Eight neighbours (past the row's end near it).
+                    0 => Grid::pack(x0 + l, y0),
+                    // Along a row, now and then a row down.
+                    1 => Grid::pack((x0 + l).min(w - 1), (y0 + l / 3).min(h - 1)),
+                    2 => Grid::pack(rng.below(w as u32 + 2) as usize, rng.below(h as u32) as usize),
+                    _ if rng.below(2) == 0 => NONE,
+                    _ => Grid::pack(rng.below(w as u32) as usize, rng.below(h as u32) as usize),
+                };
+            }
+            let (inv_fx, inv_fy) = (1.0 / k.fx, 1.0 / k.fy);
+            let (lanes, seen) = ObservedLanes::gather(&input, (inv_fx, inv_fy), &sources);
+            let [px, py, pz] = lanes.p.map(f32x8::to_array);
+            let [ou, ov] = lanes.observed.map(f32x8::to_array);
+            for (l, &s) in sources.iter().enumerate() {
+                let (sx, sy) = Grid::unpack(s);
+                let truth = (s != NONE)
+                    .then(|| {
+                        let z = input.depth_t.get(sx, sy).copied().and_then(valid_depth)?;
+                        let [dx, dy] = *input.flow.get(sx, sy)?;
+                        let (u, v) = (sx as Real, sy as Real);
+                        let p = [(u - k.cx) * z * inv_fx, (v - k.cy) * z * inv_fy, z];
+                        Some((p, [u + dx, v + dy]))
+                    })
+                    .flatten();
+                proptest::prop_assert_eq!(seen >> l & 1 != 0, truth.is_some(), "lane {}", l);
+                if let Some((p, o)) = truth {
+                    let got = [px[l], py[l], pz[l], ou[l], ov[l]].map(Real::to_bits);
+                    let want = [p[0], p[1], p[2], o[0], o[1]].map(Real::to_bits);
+                    proptest::prop_assert_eq!(got, want, "lane {}", l);
+                }
+            }
+        }
+    }
+
     /// Segment entries for segments `1..=segments` of a blocky map: each with `0..=3`
     /// groups (of `groups`), sorted, labels past `segments`.
     fn random_entries(

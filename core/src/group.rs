@@ -745,10 +745,30 @@ fn codes_below(table: &[bool; 256]) -> Option<u8> {
 }
 
 /// Pass 2 for one row when the linking codes are those below `bound`: adds each pair's
-/// link to the later frame's density (`later`) and returns the row's own link count.
+/// link to the later frame's density (`later`, as long as `row`) and returns the row's
+/// own link count. With vector lanes sixteen codes are compared at once (a compare per
+/// four codes costs more than the widening of the links).
 fn add_links_below(row: &[u8], later: &mut [u32], bound: u8) -> u32 {
+    let (row16, rest) = if SIXTEEN_PAIR_CODES {
+        row.as_chunks::<16>()
+    } else {
+        (Default::default(), row)
+    };
+    let (later16, later) = later.split_at_mut(later.len().min(row16.len() * 16));
+    let (bound16, one) = (u8x16::splat(bound), u8x16::splat(1));
     let mut own = 0u32;
-    for (&code, d) in row.iter().zip(later) {
+    for (codes, d) in row16.iter().zip(later16.as_chunks_mut::<16>().0) {
+        let links = (u8x16::new(*codes).simd_lt(bound16) & one).to_array();
+        // The two halves' bytes added (each at most 2), then all eight summed into the
+        // top byte by one multiplication: at most sixteen, so no byte carries.
+        let halves = links.as_chunks::<8>().0.iter();
+        let pairs = halves.fold(0u64, |sum, half| sum + u64::from_le_bytes(*half));
+        own += (pairs.wrapping_mul(0x0101_0101_0101_0101) >> 56) as u32;
+        for (d, &link) in d.iter_mut().zip(&links) {
+            *d += u32::from(link);
+        }
+    }
+    for (&code, d) in rest.iter().zip(later) {
         let link = u32::from(code < bound);
         own += link;
         *d += link;

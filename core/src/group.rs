@@ -783,8 +783,9 @@ const KEY_DENSITY_MAX: u32 = (1 << 24) - 1;
 
 /// Pass 3 (quick shift): writes into `attach[i]` the frame that frame `i` points at, or
 /// [`NONE`] for a mode. Among the pairs whose code `attaches_at`, a frame points at the
-/// partner of higher rank `(density, −index)` that is nearest (the code's bin), ties going
-/// to the higher rank. `keys` (`n` entries) is scratch, and `density` is overwritten.
+/// partner of higher rank `(density, −index)` that is nearest (the code, a bin: codes with
+/// [`ACROSS`] never attach, as [`link_tables`] makes them), ties going to the higher rank.
+/// `keys` (`n` entries) is scratch, and `density` is overwritten.
 ///
 /// Ranks are unique, so the result does not depend on the order the pairs are visited
 /// in. They are visited row by row, each row in order: then the frame already chosen
@@ -808,7 +809,7 @@ fn attach_up(
     let sparseness = &*density;
     // Codes that attach are below `ACROSS`, so every key is below `u32::MAX`: "no
     // attachment yet".
-    let key = |code: u8, sparse: u32| (u32::from(code & !ACROSS) << 24) | sparse;
+    let key = |code: u8, sparse: u32| (u32::from(code) << 24) | sparse;
     attach.fill(NONE);
     keys.fill(u32::MAX);
     let bound = codes_below(attaches_at);

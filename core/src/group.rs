@@ -673,13 +673,16 @@ impl RowFrame {
 
 /// How many times each code occurs in `codes`. Four tables, one for each byte of a
 /// group of four, so that runs of one code (common: most pairs of a body share a bin)
-/// do not wait on their own last count; the sums are the same.
+/// do not wait on their own last count; the sums are the same. Eight codes a round
+/// spare half the loop's own instructions.
 fn count_codes(codes: &[u8]) -> [u32; 256] {
     let mut tables = [[0u32; 256]; 4];
-    let (fours, rest) = codes.as_chunks::<4>();
-    for four in fours {
-        for (table, &code) in tables.iter_mut().zip(four) {
-            table[usize::from(code)] += 1;
+    let (eights, rest) = codes.as_chunks::<8>();
+    for eight in eights {
+        for four in eight.as_chunks::<4>().0 {
+            for (table, &code) in tables.iter_mut().zip(four) {
+                table[usize::from(code)] += 1;
+            }
         }
     }
     for &code in rest {

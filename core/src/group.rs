@@ -492,7 +492,15 @@ fn four_bins(b: f32x4) -> i32x4 {
     let last = f32x4::splat((KDE_BINS - 1) as Real);
     // Every lane is then a whole number in `[0, KDE_BINS)` or a value in it to truncate
     // (or `-0`, which truncates to 0), so the conversion is exact and never saturates.
-    let b = b.simd_lt(f32x4::splat(KDE_BINS as Real)).select(b, last);
+    // On SSE the minimum with the last bin is one instruction (`minps`, which gives its
+    // second operand when the first is NaN) and truncates alike: values in
+    // `[KDE_BINS − 1, KDE_BINS)` truncate to the last bin either way. Elsewhere
+    // `fast_min` may keep a NaN, so the compare and select stay.
+    let b = if cfg!(target_feature = "sse") {
+        b.fast_min(last)
+    } else {
+        b.simd_lt(f32x4::splat(KDE_BINS as Real)).select(b, last)
+    };
     b.fast_trunc_int()
 }
 
@@ -665,13 +673,16 @@ impl RowFrame {
 
 /// How many times each code occurs in `codes`. Four tables, one for each byte of a
 /// group of four, so that runs of one code (common: most pairs of a body share a bin)
-/// do not wait on their own last count; the sums are the same.
+/// do not wait on their own last count; the sums are the same. Eight codes a round
+/// spare half the loop's own instructions.
 fn count_codes(codes: &[u8]) -> [u32; 256] {
     let mut tables = [[0u32; 256]; 4];
-    let (fours, rest) = codes.as_chunks::<4>();
-    for four in fours {
-        for (table, &code) in tables.iter_mut().zip(four) {
-            table[usize::from(code)] += 1;
+    let (eights, rest) = codes.as_chunks::<8>();
+    for eight in eights {
+        for four in eight.as_chunks::<4>().0 {
+            for (table, &code) in tables.iter_mut().zip(four) {
+                table[usize::from(code)] += 1;
+            }
         }
     }
     for &code in rest {
@@ -737,10 +748,30 @@ fn codes_below(table: &[bool; 256]) -> Option<u8> {
 }
 
 /// Pass 2 for one row when the linking codes are those below `bound`: adds each pair's
-/// link to the later frame's density (`later`) and returns the row's own link count.
+/// link to the later frame's density (`later`, as long as `row`) and returns the row's
+/// own link count. With vector lanes sixteen codes are compared at once (a compare per
+/// four codes costs more than the widening of the links).
 fn add_links_below(row: &[u8], later: &mut [u32], bound: u8) -> u32 {
+    let (row16, rest) = if SIXTEEN_PAIR_CODES {
+        row.as_chunks::<16>()
+    } else {
+        (Default::default(), row)
+    };
+    let (later16, later) = later.split_at_mut(later.len().min(row16.len() * 16));
+    let (bound16, one) = (u8x16::splat(bound), u8x16::splat(1));
     let mut own = 0u32;
-    for (&code, d) in row.iter().zip(later) {
+    for (codes, d) in row16.iter().zip(later16.as_chunks_mut::<16>().0) {
+        let links = (u8x16::new(*codes).simd_lt(bound16) & one).to_array();
+        // The two halves' bytes added (each at most 2), then all eight summed into the
+        // top byte by one multiplication: at most sixteen, so no byte carries.
+        let halves = links.as_chunks::<8>().0.iter();
+        let pairs = halves.fold(0u64, |sum, half| sum + u64::from_le_bytes(*half));
+        own += (pairs.wrapping_mul(0x0101_0101_0101_0101) >> 56) as u32;
+        for (d, &link) in d.iter_mut().zip(&links) {
+            *d += u32::from(link);
+        }
+    }
+    for (&code, d) in rest.iter().zip(later) {
         let link = u32::from(code < bound);
         own += link;
         *d += link;
@@ -755,8 +786,9 @@ const KEY_DENSITY_MAX: u32 = (1 << 24) - 1;
 
 /// Pass 3 (quick shift): writes into `attach[i]` the frame that frame `i` points at, or
 /// [`NONE`] for a mode. Among the pairs whose code `attaches_at`, a frame points at the
-/// partner of higher rank `(density, −index)` that is nearest (the code's bin), ties going
-/// to the higher rank. `keys` (`n` entries) is scratch, and `density` is overwritten.
+/// partner of higher rank `(density, −index)` that is nearest (the code, a bin: codes with
+/// [`ACROSS`] never attach, as [`link_tables`] makes them), ties going to the higher rank.
+/// `keys` (`n` entries) is scratch, and `density` is overwritten.
 ///
 /// Ranks are unique, so the result does not depend on the order the pairs are visited
 /// in. They are visited row by row, each row in order: then the frame already chosen
@@ -780,7 +812,7 @@ fn attach_up(
     let sparseness = &*density;
     // Codes that attach are below `ACROSS`, so every key is below `u32::MAX`: "no
     // attachment yet".
-    let key = |code: u8, sparse: u32| (u32::from(code & !ACROSS) << 24) | sparse;
+    let key = |code: u8, sparse: u32| (u32::from(code) << 24) | sparse;
     attach.fill(NONE);
     keys.fill(u32::MAX);
     let bound = codes_below(attaches_at);

@@ -30,7 +30,11 @@
 //! (`riseg flow`'s default preset) on an estimator that has run once, luma conversion
 //! included, as the CLI runs it; the images are read as the CLI reads them. The two are
 //! timed alternately, one of each per run, so that load on the machine shifts both alike;
-//! the medians are reported.
+//! the medians are reported. Each run times the process twice: writing over the flow the
+//! last run left at OUT (`process`; on ext4 a rename over an existing file starts the new
+//! file's write-back, milliseconds) and writing OUT's sibling `*.new.flo`, removed before
+//! the run outside the timing (`process_new`). `decode` is the median time of decoding both
+//! PNGs here one after the other, to one value per pixel, as the CLI reads them.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -40,7 +44,10 @@ use anyhow::{Context as _, Result, bail};
 use clap::{Parser, Subcommand};
 use riseg::{
     flow::{DisFlow, FlowEstimator as _, FlowParams},
-    io::{image::read_png_as_rgb8, scene::Scene},
+    io::{
+        image::{read_png_as_rgb8, read_png_as_rgb8_mapped},
+        scene::Scene,
+    },
     rig::workspace::{ActionBuf, WorkspaceBuf},
     segment::{ClassicalSegmenter, RgbdFrame, SegmenterParams, StaticSegmenter as _},
     testkit::SyntheticStep,
@@ -78,7 +85,8 @@ enum What {
         first: PathBuf,
         /// Second image (PNG).
         second: PathBuf,
-        /// Where the processes write their flow (overwritten by every run).
+        /// Where the processes write their flow (overwritten by every run; its sibling
+        /// `*.new.flo` is written fresh by every run and removed at the end).
         #[arg(long, value_name = "OUT.flo")]
         out: PathBuf,
     },
@@ -302,14 +310,24 @@ const ONESHOT_THREADS: [usize; 2] = [1, 2];
 fn oneshot(riseg: &Path, first: &Path, second: &Path, out: &Path, runs: usize) -> Result<()> {
     let a = read_png_as_rgb8(first)?;
     let b = read_png_as_rgb8(second)?;
+    let fresh = out.with_extension("new.flo");
+    let mut decode = Vec::with_capacity(runs);
+    for _ in 0..runs {
+        let start = Instant::now();
+        for path in [first, second] {
+            read_png_as_rgb8_mapped(path, |&[_, green, _]| f32::from(green))?;
+        }
+        decode.push(start.elapsed().as_secs_f64() * 1e3);
+    }
+    println!("oneshot\tdecode\tpair\t{:.3}", median(decode));
     for threads in ONESHOT_THREADS {
         let flow = DisFlow::new(FlowParams::MEDIUM)?.with_threads(threads)?;
-        let process = || -> Result<()> {
+        let process = |to: &Path| -> Result<()> {
             let status = Command::new(riseg)
                 .arg("flow")
                 .args([first, second])
                 .arg("-o")
-                .arg(out)
+                .arg(to)
                 .args(["--threads", &threads.to_string()])
                 .status()
                 .with_context(|| format!("running {}", riseg.display()))?;
@@ -320,20 +338,37 @@ fn oneshot(riseg: &Path, first: &Path, second: &Path, out: &Path, runs: usize) -
         };
         // Warm-ups: the estimator's buffers, the binary in the page cache.
         flow.estimate(a.view(), b.view())?;
-        process()?;
-        let (mut warm, mut cold) = (Vec::with_capacity(runs), Vec::with_capacity(runs));
+        process(out)?;
+        let mut warm = Vec::with_capacity(runs);
+        let (mut over, mut new) = (Vec::with_capacity(runs), Vec::with_capacity(runs));
         for _ in 0..runs {
             let start = Instant::now();
             flow.estimate(a.view(), b.view())?;
             warm.push(start.elapsed().as_secs_f64() * 1e3);
             let start = Instant::now();
-            process()?;
-            cold.push(start.elapsed().as_secs_f64() * 1e3);
+            process(out)?;
+            over.push(start.elapsed().as_secs_f64() * 1e3);
+            remove_if_there(&fresh)?;
+            let start = Instant::now();
+            process(&fresh)?;
+            new.push(start.elapsed().as_secs_f64() * 1e3);
         }
+        remove_if_there(&fresh)?;
         println!("oneshot\t{threads}t\twarm\t{:.3}", median(warm));
-        println!("oneshot\t{threads}t\tprocess\t{:.3}", median(cold));
+        println!("oneshot\t{threads}t\tprocess\t{:.3}", median(over));
+        println!("oneshot\t{threads}t\tprocess_new\t{:.3}", median(new));
     }
     Ok(())
+}
+
+/// Removes `path` if it exists.
+fn remove_if_there(path: &Path) -> Result<()> {
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+            Err(e).with_context(|| format!("removing {}", path.display()))
+        }
+        _ => Ok(()),
+    }
 }
 
 fn main() -> Result<()> {

@@ -456,6 +456,7 @@ impl DisFlow {
                 0.0
             },
             candidates: hint_candidates(hint_px, 1.0 / (1u32 << l) as f32),
+            pyramid: l > 0,
         }
     }
 
@@ -549,6 +550,7 @@ impl DisFlow {
                 variational_iters: prm.polish_variational_iters,
                 anchor: 0.0,
                 candidates: hint_candidates(None, 1.0),
+                pyramid: false,
             })
         };
         if let (true, Base::Gray([first, second])) = (at_full, base) {
@@ -662,7 +664,13 @@ impl DisFlow {
             delta: prm.data_weight,
             edge_grey: prm.smoothness_edge_grey,
         };
-        refine(inp, flow, &settings, pool);
+        refine(
+            inp,
+            flow,
+            &settings,
+            pool,
+            step.pyramid.then_some(&*self.flows),
+        );
     }
 }
 
@@ -686,6 +694,9 @@ struct LevelStep {
     anchor: f32,
     /// The motion hint's candidates in pixels of this level ([`hint_candidates`]).
     candidates: (usize, [[f32; 2]; MAX_CANDIDATES]),
+    /// A pyramid level, not full resolution: the refinement's planes come from the flow
+    /// pool, for the full-resolution flow made after the last level to reuse.
+    pyramid: bool,
 }
 
 /// The flows a patch tries for a motion hint `hint_px` (full-resolution pixels), scaled by

@@ -174,35 +174,31 @@ impl Split {
     fn count(&self, c: usize, y: usize) -> usize {
         (self.w + 1 - Self::parity(c, y)) / 2
     }
+
+    /// Values of `n` planes of one colour ([`Planes`]), guard rows and slots included.
+    fn len(&self, n: usize) -> usize {
+        self.ps * n * (self.h + 2)
+    }
 }
 
 /// `n` planes of one colour, row-interleaved: image row `y` holds plane `j` at
 /// `data[((y + 1)·n + j)·ps ..][.. ps]`, so one contiguous chunk has every plane of a row.
-#[derive(Debug, Clone)]
-struct Planes {
+/// The values live in a buffer [`refine`] lends (several sets of planes share one).
+#[derive(Debug)]
+struct Planes<'a> {
     ps: usize,
     n: usize,
-    data: Lent<f32>,
+    data: &'a mut [f32],
 }
 
-impl Planes {
-    /// Zeroed planes (guard rows and slots included).
-    fn new(sp: &Split, n: usize, pool: &Pool) -> Self {
-        Self {
-            ps: sp.ps,
-            n,
-            data: pool.zeroed(sp.ps * n * (sp.h + 2)),
-        }
-    }
-
-    /// Planes of no particular content, for values written at every pixel before they are
-    /// read and never read at a guard.
-    fn scratch(sp: &Split, n: usize, pool: &Pool) -> Self {
-        Self {
-            ps: sp.ps,
-            n,
-            data: pool.scratch(sp.ps * n * (sp.h + 2)),
-        }
+impl<'a> Planes<'a> {
+    /// `n` planes of each colour (colour 0 first) at the front of `values`, which holds at
+    /// least `2 · sp.len(n)`, and the values after them.
+    fn pair(sp: &Split, n: usize, values: &'a mut [f32]) -> ([Self; 2], &'a mut [f32]) {
+        let (c0, rest) = values.split_at_mut(sp.len(n));
+        let (c1, rest) = rest.split_at_mut(sp.len(n));
+        let planes = |data| Self { ps: sp.ps, n, data };
+        ([planes(c0), planes(c1)], rest)
     }
 
     /// Plane `j` of buffer row `yy` (`yy = y + 1`; 0 and `h + 1` are the guard rows).
@@ -230,8 +226,15 @@ impl Planes {
     }
 }
 
-/// Refines `flow` (`w x h`, row-major) in place.
-pub(crate) fn refine(inp: RefineInput<'_>, flow: &mut [[f32; 2]], s: &RefineSettings, pool: &Pool) {
+/// Refines `flow` (`w x h`, row-major) in place. With `flows` (at the pyramid levels) the
+/// flow and system planes come from that pool (see the comment in the body).
+pub(crate) fn refine(
+    inp: RefineInput<'_>,
+    flow: &mut [[f32; 2]],
+    s: &RefineSettings,
+    pool: &Pool,
+    flows: Option<&Pool<[f32; 2]>>,
+) {
     if s.fixed_point_iters == 0 {
         inp.recycle(pool);
         return;
@@ -244,25 +247,44 @@ pub(crate) fn refine(inp: RefineInput<'_>, flow: &mut [[f32; 2]], s: &RefineSett
     // 230 pages at level 1). Neighbour reads reach the guards of the flow, increment and
     // weight planes, so those start zeroed; the system is only read where written. The
     // weights are made after the last warp has given its inputs back.
-    let mut uv = [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)];
-    let mut sys = [Planes::scratch(&sp, 5, pool), Planes::scratch(&sp, 5, pool)];
-    // Made after the first warp: the increment is zero until the first solve (and
-    // `scatter` adds that zero to the flow).
-    let mut duv: Option<[Planes; 2]> = None;
-    let mut wts: Option<[Planes; 2]> = None;
+    // The flow and system planes of both colours share one buffer. At the pyramid levels
+    // it comes from the flow pool: the full-resolution flow made after the last level
+    // then takes it with its pages already faulted in (one-shot `riseg flow` MEDIUM, 640x480:
+    // 3136 -> 2653 page faults). Not at full resolution, where it is larger than a flow
+    // and would leave the pool as the estimate's flow.
+    let front_len = 2 * sp.len(2) + 2 * sp.len(5);
+    let (mut front_pairs, mut front_values) = (None, None);
+    let front: &mut [f32] = match flows {
+        Some(f) => {
+            bytemuck::cast_slice_mut(&mut front_pairs.insert(f.scratch(front_len.div_ceil(2)))[..])
+        }
+        None => &mut front_values.insert(pool.scratch(front_len))[..],
+    };
+    let (uv_values, sys_values) = front.split_at_mut(2 * sp.len(2));
+    uv_values.fill(0.0);
+    let (mut uv, _) = Planes::pair(&sp, 2, uv_values);
+    let (mut sys, _) = Planes::pair(&sp, 5, sys_values);
+    // The increments' and the weights' values, made after the first warp: the increment
+    // is zero until the first solve (and `scatter` adds that zero to the flow).
+    let mut late: Option<[Lent<f32>; 2]> = None;
     for (c, uvc) in uv.iter_mut().enumerate() {
         scatter(&sp, c, flow, uvc);
     }
-    let edges = (s.edge_grey > 0.0).then(|| {
-        [0, 1].map(|c| {
-            let mut e = Planes::new(&sp, 2, pool);
-            edge_factors(&sp, c, inp.i0, s.edge_grey, &mut e);
-            e
-        })
+    let mut edge_values = (s.edge_grey > 0.0).then(|| {
+        let mut values = pool.zeroed(2 * sp.len(2));
+        let (mut e, _) = Planes::pair(&sp, 2, &mut values);
+        for (c, ec) in e.iter_mut().enumerate() {
+            edge_factors(&sp, c, inp.i0, s.edge_grey, ec);
+        }
+        values
     });
+    let edges = edge_values
+        .as_mut()
+        .map(|values| Planes::pair(&sp, 2, values).0);
     let mut warp_input = Some(inp);
     for iter in 0..s.fixed_point_iters {
-        if let Some(duv) = &mut duv {
+        if let Some([duv_values, _]) = &mut late {
+            let (mut duv, _) = Planes::pair(&sp, 2, duv_values);
             for (uvc, dc) in uv.iter_mut().zip(duv.iter_mut()) {
                 absorb(uvc, dc);
             }
@@ -277,8 +299,10 @@ pub(crate) fn refine(inp: RefineInput<'_>, flow: &mut [[f32; 2]], s: &RefineSett
         {
             inp.recycle(pool);
         }
-        let duv = duv.get_or_insert_with(|| [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)]);
-        let wts = wts.get_or_insert_with(|| [Planes::new(&sp, 2, pool), Planes::new(&sp, 2, pool)]);
+        let [duv_values, wts_values] =
+            late.get_or_insert_with(|| [0, 1].map(|_| pool.zeroed(2 * sp.len(2))));
+        let (duv, _) = &mut Planes::pair(&sp, 2, duv_values);
+        let (wts, _) = &mut Planes::pair(&sp, 2, wts_values);
         for (c, wc) in wts.iter_mut().enumerate() {
             smoothness(&sp, c, &uv, duv, wc, s.alpha);
             if let Some(e) = &edges {
@@ -297,18 +321,18 @@ pub(crate) fn refine(inp: RefineInput<'_>, flow: &mut [[f32; 2]], s: &RefineSett
         }
     }
     // Made in the first iteration: `fixed_point_iters > 0`.
-    if let Some(duv) = &duv {
-        gather(&sp, &uv, duv, flow);
+    if let Some([duv_values, _]) = &mut late {
+        gather(&sp, &uv, &Planes::pair(&sp, 2, duv_values).0, flow);
     }
-    for p in [Some(uv), duv, Some(sys), wts]
+    if let (Some(f), Some(values)) = (flows, front_pairs) {
+        f.put(values);
+    }
+    for values in front_values
         .into_iter()
-        .flatten()
-        .flatten()
+        .chain(late.into_iter().flatten())
+        .chain(edge_values)
     {
-        pool.put(p.data);
-    }
-    for p in edges.into_iter().flatten() {
-        pool.put(p.data);
+        pool.put(values);
     }
 }
 
@@ -628,8 +652,8 @@ mod tests {
         for (w, h) in [(5, 3), (4, 4), (1, 1), (1, 2), (2, 1)] {
             let sp = Split::new(w, h);
             // Load pixel indices as the flow's u component, in both colours.
-            let pool = Pool::default();
-            let mut planes = [Planes::new(&sp, 1, &pool), Planes::new(&sp, 1, &pool)];
+            let mut values = vec![0.0; 2 * sp.len(1)];
+            let (mut planes, _) = Planes::pair(&sp, 1, &mut values);
             for (c, p) in planes.iter_mut().enumerate() {
                 p.rows_mut(h).enumerate().for_each(|(y, row)| {
                     let s = Split::parity(c, y);
@@ -722,12 +746,38 @@ mod tests {
                 delta: 0.0,
                 edge_grey,
             };
-            refine(same_images(&i0, (w, h), &pool), &mut flow, &s, &pool);
+            refine(same_images(&i0, (w, h), &pool), &mut flow, &s, &pool, None);
             flow[w + 8][0] - flow[w + 7][0]
         };
         let (uniform, aware) = (step(0.0), step(10.0));
         assert!(aware > 0.9, "{aware}");
         assert!(uniform < 0.7, "{uniform}");
+    }
+
+    #[test]
+    fn planes_come_from_the_flow_pool_only_when_it_is_given() {
+        // With the flow pool, the flow and system planes are one of its buffers, given
+        // back holding the last values (not zeros); without it, the flow pool is not used.
+        let (w, h) = (12, 9);
+        let i: Vec<f32> = (0..w * h).map(|k| ((k * 29) % 13) as f32 * 9.0).collect();
+        let s = RefineSettings {
+            fixed_point_iters: 1,
+            sor_iters: 2,
+            sor_omega: 1.6,
+            alpha: 20.0,
+            delta: 5.0,
+            edge_grey: 0.0,
+        };
+        let sp = Split::new(w, h);
+        let pairs = (2 * sp.len(2) + 2 * sp.len(5)).div_ceil(2);
+        for given in [false, true] {
+            let (pool, flows) = (Pool::default(), Pool::default());
+            let mut flow = vec![[0.75f32, -0.5]; w * h];
+            let inp = same_images(&i, (w, h), &pool);
+            refine(inp, &mut flow, &s, &pool, given.then_some(&flows));
+            let kept = flows.scratch(pairs);
+            assert_eq!(kept.iter().any(|v| *v != [0.0; 2]), given, "{given}");
+        }
     }
 
     #[test]
@@ -745,7 +795,13 @@ mod tests {
             delta: 5.0,
             edge_grey: 0.0,
         };
-        refine(same_images(&flat, (w, h), &pool), &mut flow, &s, &pool);
+        refine(
+            same_images(&flat, (w, h), &pool),
+            &mut flow,
+            &s,
+            &pool,
+            None,
+        );
         for v in &flow {
             assert!(
                 (v[0] - 0.5).abs() < 1e-6 && (v[1] + 1.25).abs() < 1e-6,

@@ -193,6 +193,10 @@ pub(super) struct PlaneScratch {
     /// Each candidate's grid cell.
     cand_cell: Vec<u32>,
     ransac: RansacScratch,
+    /// The candidates relative to the found plane.
+    coords: PlaneCoords,
+    /// Which candidates a pass over [`PlaneCoords`] selects.
+    selected: Vec<bool>,
     flat: Vec<[f32; 2]>,
     keys: Vec<u64>,
     /// The bend's samples: plane coordinates and height.
@@ -352,7 +356,8 @@ pub(super) fn fit_table(
         plane = higher;
     }
 
-    // In-plane axes, the bend, then the hull of the largest connected inlier region.
+    // In-plane axes, the candidates in plane coordinates, the bend, then the hull of the
+    // largest connected inlier region.
     let n = plane.normal_array();
     let seed_axis = if n[0].abs() < 0.9 {
         [1.0, 0.0, 0.0]
@@ -361,23 +366,17 @@ pub(super) fn fit_table(
     };
     let e1 = normalise(cross(n, seed_axis));
     let e2 = cross(n, e1);
+    let coords = &mut s.coords;
+    coords.fill(cand_pts, cand_nrm, &plane, [e1, e2], cos_normal, params);
     let mut table = TableFit {
         plane,
         bend: Bend::flat(e1, e2),
         hull: Hull::new(e1, e2, &[]),
     };
     for widen in [2.5, 1.0, 1.0] {
-        let fit = &table;
-        let Some(bend) = Bend::fit(
-            e1,
-            e2,
-            cand_pts.iter().zip(cand_nrm).filter_map(|(&p, &q)| {
-                let tol = widen * params.plane_tolerance_m(p[2]);
-                (fit.height_of(p).abs() <= tol && dot(n, q) >= cos_normal)
-                    .then(|| (p, plane.height_of(p)))
-            }),
-            &mut s.bend_samples,
-        ) else {
+        coords.select(&table.bend, widen, &mut s.selected);
+        let Some(bend) = Bend::fit(e1, e2, coords.selected(&s.selected), &mut s.bend_samples)
+        else {
             break;
         };
         table.bend = bend;
@@ -385,23 +384,85 @@ pub(super) fn fit_table(
 
     // Only candidates can be table cells (a cell without a normal fails the normal test),
     // and they are in cell order: both passes read the compact candidates.
+    coords.select(&table.bend, 1.0, &mut s.selected);
     s.grid.clear();
     s.grid.resize(gw * gh, 0);
-    for ((&p, &q), &cell) in cand_pts.iter().zip(cand_nrm).zip(&s.cand_cell) {
-        if table.height_of(p).abs() <= params.plane_tolerance_m(p[2]) && dot(n, q) >= cos_normal {
+    for (&on, &cell) in s.selected.iter().zip(&s.cand_cell) {
+        if on {
             s.grid[cell as usize] = 1;
         }
     }
     let largest = largest_component(gw, gh, &mut s.grid, &mut s.queue);
     s.flat.clear();
-    for (&p, &cell) in cand_pts.iter().zip(&s.cand_cell) {
+    for ((&u, &v), &cell) in coords.u.iter().zip(&coords.v).zip(&s.cand_cell) {
         if s.grid[cell as usize] == largest {
-            s.flat.push([dot(e1, p), dot(e2, p)]);
+            s.flat.push([u, v]);
         }
     }
     convex_hull(&mut s.flat, &mut s.keys, &mut s.hull);
     table.hull = Hull::new(e1, e2, &s.hull);
     Ok(table)
+}
+
+/// The candidates relative to the table plane, computed once for the passes of the bend
+/// and the hull: in-plane coordinates `u = e1 · p`, `v = e2 · p`, height over the plane,
+/// inlier tolerance, and whether the normal is within `plane_normal_deg` of the plane's.
+#[derive(Debug, Default)]
+struct PlaneCoords {
+    u: Vec<f32>,
+    v: Vec<f32>,
+    height_m: Vec<f32>,
+    tol_m: Vec<f32>,
+    facing: Vec<bool>,
+}
+
+impl PlaneCoords {
+    fn fill(
+        &mut self,
+        pts: &[P3],
+        nrm: &[P3],
+        plane: &TablePlane,
+        [e1, e2]: [P3; 2],
+        cos_normal: f32,
+        params: &SegmenterParams,
+    ) {
+        let n = plane.normal_array();
+        self.u.clear();
+        self.u.extend(pts.iter().map(|&p| dot(e1, p)));
+        self.v.clear();
+        self.v.extend(pts.iter().map(|&p| dot(e2, p)));
+        self.height_m.clear();
+        self.height_m
+            .extend(pts.iter().map(|&p| plane.height_of(p)));
+        self.tol_m.clear();
+        self.tol_m
+            .extend(pts.iter().map(|p| params.plane_tolerance_m(p[2])));
+        self.facing.clear();
+        self.facing
+            .extend(nrm.iter().map(|&q| dot(n, q) >= cos_normal));
+    }
+
+    /// Marks in `out` the candidates within `widen` tolerances of plane plus `bend` whose
+    /// normal faces the plane's.
+    fn select(&self, bend: &Bend, widen: f32, out: &mut Vec<bool>) {
+        let k = self.u.len();
+        out.clear();
+        out.resize(k, false);
+        let (u, v, height_m) = (&self.u[..k], &self.v[..k], &self.height_m[..k]);
+        let (tol_m, facing, out) = (&self.tol_m[..k], &self.facing[..k], &mut out[..k]);
+        for j in 0..k {
+            let off = height_m[j] - bend.at_uv(u[j], v[j]);
+            out[j] = (off.abs() <= widen * tol_m[j]) & facing[j];
+        }
+    }
+
+    /// `(u, v, height)` of the candidates marked in `selected`, in order.
+    fn selected<'a>(&'a self, selected: &'a [bool]) -> impl Iterator<Item = [f32; 3]> + 'a {
+        selected
+            .iter()
+            .zip(self.u.iter().zip(&self.v).zip(&self.height_m))
+            .filter_map(|(&on, ((&u, &v), &h))| on.then_some([u, v, h]))
+    }
 }
 
 /// Labels the 4-connected components of the cells marked `1` in `grid` with ids from 2
@@ -475,20 +536,20 @@ impl Bend {
         [1.0, u, v, u * u, u * v, v * v]
     }
 
-    /// Fits the plane heights `(p, h)` of the table's points; `None` if there are too few or
-    /// they do not determine a quadratic.
+    /// Fits the plane heights `h` at the plane coordinates `(u, v)` of the table's points;
+    /// `None` if there are too few or they do not determine a quadratic.
     fn fit(
         e1: P3,
         e2: P3,
-        points: impl Iterator<Item = (P3, f32)>,
+        points: impl Iterator<Item = [f32; 3]>,
         samples: &mut Vec<[f64; 3]>,
     ) -> Option<Self> {
         samples.clear();
         // The centre's sums along the way, in the order and from the `-0.0` that
         // `Iterator::sum` uses.
         let (mut sum_u, mut sum_v) = (-0.0f64, -0.0f64);
-        for (p, h) in points {
-            let (u, v) = (f64::from(dot(e1, p)), f64::from(dot(e2, p)));
+        for [u, v, h] in points {
+            let (u, v) = (f64::from(u), f64::from(v));
             sum_u += u;
             sum_v += v;
             samples.push([u, v, f64::from(h)]);
@@ -498,21 +559,52 @@ impl Bend {
         }
         let k = samples.len() as f64;
         let (cu, cv) = (sum_u / k, sum_v / k);
-        // The normal equations: `ata` is symmetric, so only its upper triangle is summed
-        // (each entry the same products in the same order) and then mirrored.
-        let mut upper = [[0.0f64; 6]; 6];
-        let mut tb = [0.0f64; 6];
+        // The normal equations `Σ t tᵀ c = Σ t h` over the terms `t`. Each entry of the
+        // symmetric `Σ t tᵀ` is one sum of products in sample order; `t₀ = 1`, so row 0
+        // holds `k` and the sums of the terms, which are also the entries `(1, 1)`,
+        // `(1, 2)` and `(2, 2)` (the same products). The other sums take two passes, so
+        // that each pass's sums stay in registers.
+        let mut low = [0.0f64; 11];
         for &[u, v, h] in samples.iter() {
-            let t = Self::terms(u - cu, v - cv);
-            for a in 0..6 {
-                for b in a..6 {
-                    upper[a][b] += t[a] * t[b];
-                }
-                tb[a] += t[a] * h;
+            let [_, u, v, uu, uv, vv] = Self::terms(u - cu, v - cv);
+            let add = [u, v, uu, uv, vv, h, u * h, v * h, uu * h, uv * h, vv * h];
+            for (s, a) in low.iter_mut().zip(add) {
+                *s += a;
             }
         }
+        let mut high = [0.0f64; 12];
+        for &[u, v, _] in samples.iter() {
+            let [_, u, v, uu, uv, vv] = Self::terms(u - cu, v - cv);
+            let add = [
+                u * uu,
+                u * uv,
+                u * vv,
+                v * uu,
+                v * uv,
+                v * vv,
+                uu * uu,
+                uu * uv,
+                uu * vv,
+                uv * uv,
+                uv * vv,
+                vv * vv,
+            ];
+            for (s, a) in high.iter_mut().zip(add) {
+                *s += a;
+            }
+        }
+        let [su, sv, suu, suv, svv, sh, suh, svh, suuh, suvh, svvh] = low;
+        let [h13, h14, h15, h23, h24, h25, h33, h34, h35, h44, h45, h55] = high;
+        let upper = [
+            [k, su, sv, suu, suv, svv],
+            [0.0, suu, suv, h13, h14, h15],
+            [0.0, 0.0, svv, h23, h24, h25],
+            [0.0, 0.0, 0.0, h33, h34, h35],
+            [0.0, 0.0, 0.0, 0.0, h44, h45],
+            [0.0, 0.0, 0.0, 0.0, 0.0, h55],
+        ];
         let ata = nalgebra::Matrix6::from_fn(|a, b| upper[a.min(b)][a.max(b)]);
-        let atb = nalgebra::Vector6::from(tb);
+        let atb = nalgebra::Vector6::from([sh, suh, svh, suuh, suvh, svvh]);
         let c = ata.cholesky()?.solve(&atb);
         let coef = [c[0], c[1], c[2], c[3], c[4], c[5]].map(|v| v as f32);
         coef.iter().all(|v| v.is_finite()).then_some(Self {
@@ -525,10 +617,12 @@ impl Bend {
 
     /// The table's height over the plane under `p`, metres.
     fn at(&self, p: P3) -> f32 {
-        let (u, v) = (
-            dot(self.e1, p) - self.centre[0],
-            dot(self.e2, p) - self.centre[1],
-        );
+        self.at_uv(dot(self.e1, p), dot(self.e2, p))
+    }
+
+    /// [`Self::at`] at the plane coordinates `u = e1 · p`, `v = e2 · p`.
+    fn at_uv(&self, u: f32, v: f32) -> f32 {
+        let (u, v) = (u - self.centre[0], v - self.centre[1]);
         let c = &self.coef;
         (c[0] + c[1] * u + c[2] * v + c[3] * u * u + c[4] * u * v + c[5] * v * v)
             .clamp(-MAX_BEND_M, MAX_BEND_M)

@@ -186,12 +186,15 @@ impl Hull {
 /// Scratch of [`fit_table`], reused across frames.
 #[derive(Debug, Default)]
 pub(super) struct PlaneScratch {
-    /// The candidates' points and normals, gathered once from the grid: every pass over
-    /// them reads memory in order.
-    cand_pts: Vec<P3>,
-    cand_nrm: Vec<P3>,
+    /// The candidates' points, normals and inlier tolerances, gathered once from the
+    /// grid: every pass over them reads memory in order.
+    cands: Samples,
     /// Each candidate's grid cell.
     cand_cell: Vec<u32>,
+    /// The candidates a search for a higher plane may use.
+    raised: Samples,
+    /// Pixels of the candidates, then candidates of `raised`.
+    idx: Vec<u32>,
     ransac: RansacScratch,
     /// The candidates relative to the found plane.
     coords: PlaneCoords,
@@ -209,13 +212,15 @@ pub(super) struct PlaneScratch {
 /// Scratch of [`ransac`].
 #[derive(Debug, Default)]
 struct RansacScratch {
-    /// Indices of the candidates the search may use.
-    allowed: Vec<u32>,
+    /// The scoring samples, and their indices among the allowed candidates.
     samples: Samples,
+    drawn: Vec<u32>,
+    /// Which of the allowed candidates are inliers of the plane being refitted.
+    inlier: Vec<bool>,
 }
 
-/// The RANSAC scoring samples as planes (point x, y, z, normal x, y, z, inlier
-/// tolerance), so that counting the inliers of a hypothesis vectorises.
+/// Points with their normals and inlier tolerances as planes (point x, y, z, normal x, y,
+/// z, tolerance), so that the inlier tests of a plane vectorise.
 #[derive(Debug, Default)]
 struct Samples {
     p: [Vec<f32>; 3],
@@ -224,37 +229,121 @@ struct Samples {
 }
 
 impl Samples {
-    fn clear(&mut self) {
+    fn len(&self) -> usize {
+        self.tol_m.len()
+    }
+
+    /// Sizes the planes for `k` samples and returns them: points, normals, tolerances.
+    fn resized(&mut self, k: usize) -> ([&mut [f32]; 3], [&mut [f32]; 3], &mut [f32]) {
         for v in self.p.iter_mut().chain(&mut self.n) {
-            v.clear();
+            v.resize(k, 0.0);
         }
-        self.tol_m.clear();
+        self.tol_m.resize(k, 0.0);
+        let [px, py, pz] = &mut self.p;
+        let [nx, ny, nz] = &mut self.n;
+        (
+            [&mut px[..k], &mut py[..k], &mut pz[..k]],
+            [&mut nx[..k], &mut ny[..k], &mut nz[..k]],
+            &mut self.tol_m[..k],
+        )
     }
 
-    fn push(&mut self, p: P3, n: P3, tol_m: f32) {
-        for k in 0..3 {
-            self.p[k].push(p[k]);
-            self.n[k].push(n[k]);
+    /// The points `pts[i]`, normals `nrm[i]` and tolerances `tol_m(pts[i][2])` of the
+    /// indices `i` of `idx`, in order.
+    fn gather(&mut self, idx: &[u32], pts: &[P3], nrm: &[P3], tol_m: impl Fn(f32) -> f32) {
+        let ([px, py, pz], [nx, ny, nz], tol) = self.resized(idx.len());
+        for (j, &i) in idx.iter().enumerate() {
+            let (p, n) = (pts[i as usize], nrm[i as usize]);
+            [px[j], py[j], pz[j]] = p;
+            [nx[j], ny[j], nz[j]] = n;
+            tol[j] = tol_m(p[2]);
         }
-        self.tol_m.push(tol_m);
     }
 
-    /// How many samples are inliers of `plane` ([`is_inlier`]).
-    fn inliers(&self, plane: &TablePlane, cos_normal: f32) -> usize {
-        let k = self.tol_m.len();
+    /// Samples `j` of `other` for the indices `j` of `idx`, in order.
+    fn gather_from(&mut self, other: &Self, idx: &[u32]) {
+        let ([px, py, pz], [nx, ny, nz], tol) = self.resized(idx.len());
+        for (j, &i) in idx.iter().enumerate() {
+            let i = i as usize;
+            [px[j], py[j], pz[j]] = other.point(i);
+            [nx[j], ny[j], nz[j]] = other.n.each_ref().map(|v| v[i]);
+            tol[j] = other.tol_m[i];
+        }
+    }
+
+    /// How many of the points pass `test`.
+    fn count(&self, test: impl Fn(P3) -> bool) -> usize {
+        let k = self.len();
         let [px, py, pz] = self.p.each_ref().map(|v| &v[..k]);
-        let [nx, ny, nz] = self.n.each_ref().map(|v| &v[..k]);
+        (0..k)
+            .map(|j| usize::from(test([px[j], py[j], pz[j]])))
+            .sum()
+    }
+
+    fn point(&self, j: usize) -> P3 {
+        self.p.each_ref().map(|v| v[j])
+    }
+
+    /// The inlier tests of `plane` for the samples `range`, one per sample into `f(j, is)`:
+    /// an inlier lies within its tolerance of the plane, its normal within
+    /// `acos(cos_normal)` of the plane's.
+    #[inline(always)]
+    fn inlier_tests(
+        &self,
+        plane: &TablePlane,
+        cos_normal: f32,
+        range: core::ops::Range<usize>,
+        mut f: impl FnMut(usize, bool),
+    ) {
         let [a, b, c] = plane.normal_array();
-        let tol_m = &self.tol_m[..k];
-        let mut count = 0u32;
+        let [px, py, pz] = self.p.each_ref().map(|v| &v[range.clone()]);
+        let [nx, ny, nz] = self.n.each_ref().map(|v| &v[range.clone()]);
+        let tol_m = &self.tol_m[range.clone()];
+        let k = tol_m.len();
+        let (px, py, pz, nx, ny, nz) = (&px[..k], &py[..k], &pz[..k], &nx[..k], &ny[..k], &nz[..k]);
         for j in 0..k {
             let height = plane.height_of([px[j], py[j], pz[j]]);
             let facing = a * nx[j] + b * ny[j] + c * nz[j];
-            count += u32::from((height.abs() <= tol_m[j]) & (facing >= cos_normal));
+            f(j, (height.abs() <= tol_m[j]) & (facing >= cos_normal));
         }
-        count as usize
+    }
+
+    /// How many samples are inliers of `plane` ([`Self::inlier_tests`]), if more than
+    /// `beat`: `None` as soon as the samples left cannot lift the count above it (the
+    /// count goes by blocks of [`INLIER_BLOCK`] samples).
+    fn inliers_over(
+        &self,
+        plane: &TablePlane,
+        cos_normal: f32,
+        beat: Option<usize>,
+    ) -> Option<usize> {
+        let total = self.len();
+        let mut count = 0;
+        for start in (0..total).step_by(INLIER_BLOCK) {
+            if beat.is_some_and(|b| count + (total - start) <= b) {
+                return None;
+            }
+            let mut block = 0u32;
+            let end = (start + INLIER_BLOCK).min(total);
+            self.inlier_tests(plane, cos_normal, start..end, |_, is| {
+                block += u32::from(is);
+            });
+            count += block as usize;
+        }
+        beat.is_none_or(|b| count > b).then_some(count)
+    }
+
+    /// The inliers of `plane` into `out`, one flag per sample.
+    fn mark_inliers(&self, plane: &TablePlane, cos_normal: f32, out: &mut Vec<bool>) {
+        out.clear();
+        out.resize(self.len(), false);
+        let out = &mut out[..];
+        self.inlier_tests(plane, cos_normal, 0..out.len(), |j, is| out[j] = is);
     }
 }
+
+/// Samples per block of [`Samples::inliers_over`].
+const INLIER_BLOCK: usize = 128;
 
 /// The fitted table: plane, bend and the hull objects must stand in.
 #[derive(Debug, Clone)]
@@ -269,11 +358,6 @@ impl TableFit {
     pub(super) fn height_of(&self, p: P3) -> f32 {
         self.plane.height_of(p) - self.bend.at(p)
     }
-}
-
-fn is_inlier(plane: &TablePlane, p: P3, n: P3, cos_normal: f32, params: &SegmenterParams) -> bool {
-    plane.height_of(p).abs() <= params.plane_tolerance_m(p[2])
-        && dot(plane.normal_array(), n) >= cos_normal
 }
 
 /// The candidate grid's spacing, pixels: the grid's cells are the pixels
@@ -293,6 +377,7 @@ pub(super) fn is_grid_row(w: usize, h: usize, y: usize) -> bool {
 ///
 /// # Errors
 /// [`SegmentError::NoTablePlane`] if no plane holds `min_table_share` of the candidates.
+#[inline(never)] // called once a frame; kept apart so that profiles show it
 pub(super) fn fit_table(
     w: usize,
     h: usize,
@@ -312,26 +397,24 @@ pub(super) fn fit_table(
             (0..gw).map(move |gx| (step / 2 + gy * step) * w + step / 2 + gx * step)
         })
     };
-    s.cand_pts.clear();
-    s.cand_nrm.clear();
     s.cand_cell.clear();
+    s.idx.clear();
     for (cell, i) in grid_pixels().enumerate() {
         if pts[i][2] > 0.0 && nrm[i] != [0.0; 3] {
-            s.cand_pts.push(pts[i]);
-            s.cand_nrm.push(nrm[i]);
             s.cand_cell.push(cell as u32);
+            s.idx.push(i as u32);
         }
     }
-    let (cand_pts, cand_nrm) = (&s.cand_pts, &s.cand_nrm);
-    let candidates = cand_pts.len();
+    s.cands
+        .gather(&s.idx, pts, nrm, |z| params.plane_tolerance_m(z));
+    let cands = &s.cands;
+    let candidates = cands.len();
     let needed = ((params.min_table_share * candidates as f32).ceil() as usize).max(3);
     let cos_normal = libm::cosf(params.plane_normal_deg.to_radians());
     let mut rng = Pcg32::new(params.seed);
 
     let rs = &mut s.ransac;
-    rs.allowed.clear();
-    rs.allowed.extend(0..candidates as u32);
-    let (mut plane, inliers) = ransac(cand_pts, cand_nrm, None, params, &mut rng, rs);
+    let (mut plane, inliers) = ransac(cands, None, params, &mut rng, rs);
     if inliers < needed {
         return Err(SegmentError::NoTablePlane {
             inliers,
@@ -341,15 +424,15 @@ pub(super) fn fit_table(
     }
     for _ in 0..MAX_RAISES {
         let base = plane;
-        rs.allowed.clear();
-        rs.allowed.extend(
-            (0..candidates as u32)
-                .filter(|&k| base.height_of(cand_pts[k as usize]) > params.table_step_m),
-        );
-        if rs.allowed.len() < needed {
+        let raised = |p| base.height_of(p) > params.table_step_m;
+        if cands.count(raised) < needed {
             break;
         }
-        let (higher, n) = ransac(cand_pts, cand_nrm, Some(&base), params, &mut rng, rs);
+        s.idx.clear();
+        s.idx
+            .extend((0..candidates as u32).filter(|&j| raised(cands.point(j as usize))));
+        s.raised.gather_from(cands, &s.idx);
+        let (higher, n) = ransac(&s.raised, Some(&base), params, &mut rng, rs);
         if n < needed {
             break;
         }
@@ -367,14 +450,14 @@ pub(super) fn fit_table(
     let e1 = normalise(cross(n, seed_axis));
     let e2 = cross(n, e1);
     let coords = &mut s.coords;
-    coords.fill(cand_pts, cand_nrm, &plane, [e1, e2], cos_normal, params);
+    coords.fill(cands, &plane, [e1, e2], cos_normal);
     let mut table = TableFit {
         plane,
         bend: Bend::flat(e1, e2),
         hull: Hull::new(e1, e2, &[]),
     };
     for widen in [2.5, 1.0, 1.0] {
-        coords.select(&table.bend, widen, &mut s.selected);
+        coords.select(&cands.tol_m, &table.bend, widen, &mut s.selected);
         let Some(bend) = Bend::fit(e1, e2, coords.selected(&s.selected), &mut s.bend_samples)
         else {
             break;
@@ -384,7 +467,7 @@ pub(super) fn fit_table(
 
     // Only candidates can be table cells (a cell without a normal fails the normal test),
     // and they are in cell order: both passes read the compact candidates.
-    coords.select(&table.bend, 1.0, &mut s.selected);
+    coords.select(&cands.tol_m, &table.bend, 1.0, &mut s.selected);
     s.grid.clear();
     s.grid.resize(gw * gh, 0);
     for (&on, &cell) in s.selected.iter().zip(&s.cand_cell) {
@@ -406,50 +489,44 @@ pub(super) fn fit_table(
 
 /// The candidates relative to the table plane, computed once for the passes of the bend
 /// and the hull: in-plane coordinates `u = e1 · p`, `v = e2 · p`, height over the plane,
-/// inlier tolerance, and whether the normal is within `plane_normal_deg` of the plane's.
+/// and whether the normal is within `plane_normal_deg` of the plane's.
 #[derive(Debug, Default)]
 struct PlaneCoords {
     u: Vec<f32>,
     v: Vec<f32>,
     height_m: Vec<f32>,
-    tol_m: Vec<f32>,
     facing: Vec<bool>,
 }
 
 impl PlaneCoords {
-    fn fill(
-        &mut self,
-        pts: &[P3],
-        nrm: &[P3],
-        plane: &TablePlane,
-        [e1, e2]: [P3; 2],
-        cos_normal: f32,
-        params: &SegmenterParams,
-    ) {
+    fn fill(&mut self, cands: &Samples, plane: &TablePlane, [e1, e2]: [P3; 2], cos_normal: f32) {
+        let k = cands.len();
         let n = plane.normal_array();
-        self.u.clear();
-        self.u.extend(pts.iter().map(|&p| dot(e1, p)));
-        self.v.clear();
-        self.v.extend(pts.iter().map(|&p| dot(e2, p)));
-        self.height_m.clear();
-        self.height_m
-            .extend(pts.iter().map(|&p| plane.height_of(p)));
-        self.tol_m.clear();
-        self.tol_m
-            .extend(pts.iter().map(|p| params.plane_tolerance_m(p[2])));
-        self.facing.clear();
-        self.facing
-            .extend(nrm.iter().map(|&q| dot(n, q) >= cos_normal));
+        self.u.resize(k, 0.0);
+        self.v.resize(k, 0.0);
+        self.height_m.resize(k, 0.0);
+        self.facing.resize(k, false);
+        let (u, v) = (&mut self.u[..k], &mut self.v[..k]);
+        let (height_m, facing) = (&mut self.height_m[..k], &mut self.facing[..k]);
+        let [px, py, pz] = cands.p.each_ref().map(|v| &v[..k]);
+        let [nx, ny, nz] = cands.n.each_ref().map(|v| &v[..k]);
+        for j in 0..k {
+            let p = [px[j], py[j], pz[j]];
+            u[j] = dot(e1, p);
+            v[j] = dot(e2, p);
+            height_m[j] = plane.height_of(p);
+            facing[j] = dot(n, [nx[j], ny[j], nz[j]]) >= cos_normal;
+        }
     }
 
-    /// Marks in `out` the candidates within `widen` tolerances of plane plus `bend` whose
-    /// normal faces the plane's.
-    fn select(&self, bend: &Bend, widen: f32, out: &mut Vec<bool>) {
+    /// Marks in `out` the candidates within `widen` times their tolerances `tol_m` of
+    /// plane plus `bend` whose normal faces the plane's.
+    fn select(&self, tol_m: &[f32], bend: &Bend, widen: f32, out: &mut Vec<bool>) {
         let k = self.u.len();
         out.clear();
         out.resize(k, false);
         let (u, v, height_m) = (&self.u[..k], &self.v[..k], &self.height_m[..k]);
-        let (tol_m, facing, out) = (&self.tol_m[..k], &self.facing[..k], &mut out[..k]);
+        let (tol_m, facing, out) = (&tol_m[..k], &self.facing[..k], &mut out[..k]);
         for j in 0..k {
             let off = height_m[j] - bend.at_uv(u[j], v[j]);
             out[j] = (off.abs() <= widen * tol_m[j]) & facing[j];
@@ -634,12 +711,10 @@ fn normalise(v: P3) -> P3 {
     [v[0] / len, v[1] / len, v[2] / len]
 }
 
-/// Best plane among the points `pts` (normals `nrm`) of `s.allowed` (optionally
-/// near-parallel to `parallel_to`), refitted; returns it and its inlier count among
-/// `s.allowed`.
+/// Best plane among the candidates `allowed` (optionally near-parallel to
+/// `parallel_to`), refitted; returns it and its inlier count among `allowed`.
 fn ransac(
-    pts: &[P3],
-    nrm: &[P3],
+    allowed: &Samples,
     parallel_to: Option<&TablePlane>,
     params: &SegmenterParams,
     rng: &mut Pcg32,
@@ -651,21 +726,20 @@ fn ransac(
         normal: Vector3::new(0.0, 0.0, -1.0),
         offset_m: 1.0,
     };
-    let m = s.allowed.len();
+    let m = allowed.len();
     if m < 3 {
         return (fallback, 0);
     }
     let bound = m as u32;
-    // The scoring samples, with their inlier tolerances computed once.
-    s.samples.clear();
-    for _ in 0..SCORE_SAMPLES.min(m) {
-        let i = s.allowed[rng.below(bound) as usize] as usize;
-        s.samples
-            .push(pts[i], nrm[i], params.plane_tolerance_m(pts[i][2]));
-    }
+    s.drawn.clear();
+    s.drawn
+        .extend((0..SCORE_SAMPLES.min(m)).map(|_| rng.below(bound)));
+    s.samples.gather_from(allowed, &s.drawn);
+    // A hypothesis replaces the best only with more inliers, so its count stops as soon
+    // as it cannot: the same best plane as full counts.
     let mut best: Option<(TablePlane, usize)> = None;
     for _ in 0..params.ransac_iterations {
-        let pick = |rng: &mut Pcg32| pts[s.allowed[rng.below(bound) as usize] as usize];
+        let pick = |rng: &mut Pcg32| allowed.point(rng.below(bound) as usize);
         let (a, b, c) = (pick(rng), pick(rng), pick(rng));
         let Some(plane) = TablePlane::through(a, b, c) else {
             continue;
@@ -675,8 +749,10 @@ fn ransac(
         {
             continue;
         }
-        let count = s.samples.inliers(&plane, cos_normal);
-        if best.is_none_or(|(_, n)| count > n) {
+        if let Some(count) = s
+            .samples
+            .inliers_over(&plane, cos_normal, best.map(|(_, n)| n))
+        {
             best = Some((plane, count));
         }
     }
@@ -684,43 +760,46 @@ fn ransac(
         return (fallback, 0);
     };
     for _ in 0..2 {
-        let Some(refit) = refit(pts, nrm, &plane, cos_normal, params, &s.allowed) else {
+        allowed.mark_inliers(&plane, cos_normal, &mut s.inlier);
+        let Some(refit) = refit(allowed, &s.inlier, &plane) else {
             break;
         };
         plane = refit;
     }
-    let count = s
-        .allowed
-        .iter()
-        .filter(|&&i| is_inlier(&plane, pts[i as usize], nrm[i as usize], cos_normal, params))
-        .count();
+    let count = allowed
+        .inliers_over(&plane, cos_normal, None)
+        .unwrap_or_default();
     (plane, count)
 }
 
-/// Least-squares plane through the inliers of `plane` among `idx`.
-fn refit(
-    pts: &[P3],
-    nrm: &[P3],
-    plane: &TablePlane,
-    cos_normal: f32,
-    params: &SegmenterParams,
-    idx: &[u32],
-) -> Option<TablePlane> {
+/// Least-squares plane through the points of `pts` marked in `inlier` (the inliers of
+/// `plane`).
+fn refit(pts: &Samples, inlier: &[bool], plane: &TablePlane) -> Option<TablePlane> {
+    // Count, sums and the upper triangle of the sums of `p pᵀ`, each in point order (the
+    // product of two `f32` is exact in `f64`, so the mirrored triangle is the full sum).
     let mut n = 0.0f64;
-    let mut sum = Vector3::<f64>::zeros();
-    let mut sq = Matrix3::<f64>::zeros();
-    for &i in idx {
-        let p = pts[i as usize];
-        if is_inlier(plane, p, nrm[i as usize], cos_normal, params) {
-            let v = Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
-            n += 1.0;
-            sum += v;
-            sq += v * v.transpose();
+    let mut sum = [0.0f64; 3];
+    let mut sq = [0.0f64; 6];
+    let [px, py, pz] = pts.p.each_ref().map(|v| &v[..inlier.len()]);
+    for (j, _) in inlier.iter().enumerate().filter(|(_, on)| **on) {
+        let [x, y, z] = [px[j], py[j], pz[j]].map(f64::from);
+        n += 1.0;
+        for (s, a) in sum.iter_mut().zip([x, y, z]) {
+            *s += a;
+        }
+        for (s, a) in sq
+            .iter_mut()
+            .zip([x * x, x * y, x * z, y * y, y * z, z * z])
+        {
+            *s += a;
         }
     }
     if n < 3.0 {
         return None;
     }
+    let sum = Vector3::from(sum);
+    let [xx, xy, xz, yy, yz, zz] = sq;
+    let sq = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
     let mean = sum / n;
     let cov = sq / n - mean * mean.transpose();
     let eig = SymmetricEigen::new(cov);

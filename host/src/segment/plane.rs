@@ -189,7 +189,7 @@ pub(super) struct PlaneScratch {
     /// The candidates' points, normals and inlier tolerances, gathered once from the
     /// grid: every pass over them reads memory in order.
     cands: Samples,
-    /// Each candidate's grid cell.
+    /// Each candidate's cell in the padded grid.
     cand_cell: Vec<u32>,
     /// The candidates a search for a higher plane may use.
     raised: Samples,
@@ -206,7 +206,7 @@ pub(super) struct PlaneScratch {
     bend_samples: Vec<[f64; 3]>,
     hull: Vec<[f32; 2]>,
     grid: Vec<u32>,
-    queue: Vec<[u32; 2]>,
+    queue: Vec<u32>,
 }
 
 /// Scratch of [`ransac`].
@@ -391,15 +391,20 @@ pub(super) fn fit_table(
         w.saturating_sub(step / 2).div_ceil(step),
         h.saturating_sub(step / 2).div_ceil(step),
     );
-    // The pixel of each grid cell, in cell order (row by row, without a division).
+    // Each grid cell's index in the grid padded by one cell on every side, and its pixel,
+    // in cell order (row by row, without a division).
+    let gwp = gw + 2;
     let grid_pixels = || {
         (0..gh).flat_map(move |gy| {
-            (0..gw).map(move |gx| (step / 2 + gy * step) * w + step / 2 + gx * step)
+            (0..gw).map(move |gx| {
+                let pixel = (step / 2 + gy * step) * w + step / 2 + gx * step;
+                ((gy + 1) * gwp + gx + 1, pixel)
+            })
         })
     };
     s.cand_cell.clear();
     s.idx.clear();
-    for (cell, i) in grid_pixels().enumerate() {
+    for (cell, i) in grid_pixels() {
         if pts[i][2] > 0.0 && nrm[i] != [0.0; 3] {
             s.cand_cell.push(cell as u32);
             s.idx.push(i as u32);
@@ -458,8 +463,8 @@ pub(super) fn fit_table(
     };
     for widen in [2.5, 1.0, 1.0] {
         coords.select(&cands.tol_m, &table.bend, widen, &mut s.selected);
-        let Some(bend) = Bend::fit(e1, e2, coords.selected(&s.selected), &mut s.bend_samples)
-        else {
+        coords.selected(&s.selected, &mut s.bend_samples);
+        let Some(bend) = Bend::fit(e1, e2, &s.bend_samples) else {
             break;
         };
         table.bend = bend;
@@ -469,13 +474,13 @@ pub(super) fn fit_table(
     // and they are in cell order: both passes read the compact candidates.
     coords.select(&cands.tol_m, &table.bend, 1.0, &mut s.selected);
     s.grid.clear();
-    s.grid.resize(gw * gh, 0);
+    s.grid.resize(gwp * (gh + 2), 0);
     for (&on, &cell) in s.selected.iter().zip(&s.cand_cell) {
         if on {
             s.grid[cell as usize] = 1;
         }
     }
-    let largest = largest_component(gw, gh, &mut s.grid, &mut s.queue);
+    let largest = largest_component(gwp, &mut s.grid, &mut s.queue);
     s.flat.clear();
     for ((&u, &v), &cell) in coords.u.iter().zip(&coords.v).zip(&s.cand_cell) {
         if s.grid[cell as usize] == largest {
@@ -533,44 +538,47 @@ impl PlaneCoords {
         }
     }
 
-    /// `(u, v, height)` of the candidates marked in `selected`, in order.
-    fn selected<'a>(&'a self, selected: &'a [bool]) -> impl Iterator<Item = [f32; 3]> + 'a {
-        selected
-            .iter()
-            .zip(self.u.iter().zip(&self.v).zip(&self.height_m))
-            .filter_map(|(&on, ((&u, &v), &h))| on.then_some([u, v, h]))
+    /// `(u, v, height)` of the candidates marked in `selected`, in order, into `out`.
+    fn selected(&self, selected: &[bool], out: &mut Vec<[f64; 3]>) {
+        let k = selected.len();
+        // Every candidate is written at the next free place, which moves on past the
+        // selected ones only.
+        out.clear();
+        out.resize(k, [0.0; 3]);
+        let (u, v, height_m) = (&self.u[..k], &self.v[..k], &self.height_m[..k]);
+        let mut next = 0;
+        for (j, &on) in selected.iter().enumerate() {
+            if let Some(o) = out.get_mut(next) {
+                *o = [u[j], v[j], height_m[j]].map(f64::from);
+            }
+            next += usize::from(on);
+        }
+        out.truncate(next);
     }
 }
 
-/// Labels the 4-connected components of the cells marked `1` in `grid` with ids from 2
-/// on, and returns the id of the largest (0 if there is none).
-fn largest_component(gw: usize, gh: usize, grid: &mut [u32], queue: &mut Vec<[u32; 2]>) -> u32 {
+/// Labels the 4-connected components of the cells marked `1` in `grid` (rows of `gwp`
+/// cells, the first and last row and column unmarked) with ids from 2 on, in the order of
+/// their first cells, and returns the id of the largest (the first of equals; 0 if there
+/// is none).
+fn largest_component(gwp: usize, grid: &mut [u32], queue: &mut Vec<u32>) -> u32 {
     let (mut best, mut best_size, mut next) = (0, 0, 2);
-    for start in 0..gw * gh {
+    for start in 0..grid.len() {
         if grid[start] != 1 {
             continue;
         }
         queue.clear();
-        // Cells as (x, y), so that no division finds a cell's column.
-        queue.push([(start % gw) as u32, (start / gw) as u32]);
+        queue.push(start as u32);
         grid[start] = next;
         let mut head = 0;
-        while let Some(&[x, y]) = queue.get(head) {
+        while let Some(&g) = queue.get(head) {
             head += 1;
-            let (x, y) = (x as usize, y as usize);
-            let g = y * gw + x;
-            for (nb, nx, ny) in [
-                (x > 0).then(|| (g - 1, x - 1, y)),
-                (x + 1 < gw).then(|| (g + 1, x + 1, y)),
-                (y > 0).then(|| (g - gw, x, y - 1)),
-                (y + 1 < gh).then(|| (g + gw, x, y + 1)),
-            ]
-            .into_iter()
-            .flatten()
-            {
+            // A marked cell is inside the unmarked border: its neighbours exist.
+            let g = g as usize;
+            for nb in [g - 1, g + 1, g - gwp, g + gwp] {
                 if grid[nb] == 1 {
                     grid[nb] = next;
-                    queue.push([nx as u32, ny as u32]);
+                    queue.push(nb as u32);
                 }
             }
         }
@@ -613,26 +621,17 @@ impl Bend {
         [1.0, u, v, u * u, u * v, v * v]
     }
 
-    /// Fits the plane heights `h` at the plane coordinates `(u, v)` of the table's points;
-    /// `None` if there are too few or they do not determine a quadratic.
-    fn fit(
-        e1: P3,
-        e2: P3,
-        points: impl Iterator<Item = [f32; 3]>,
-        samples: &mut Vec<[f64; 3]>,
-    ) -> Option<Self> {
-        samples.clear();
-        // The centre's sums along the way, in the order and from the `-0.0` that
-        // `Iterator::sum` uses.
-        let (mut sum_u, mut sum_v) = (-0.0f64, -0.0f64);
-        for [u, v, h] in points {
-            let (u, v) = (f64::from(u), f64::from(v));
-            sum_u += u;
-            sum_v += v;
-            samples.push([u, v, f64::from(h)]);
-        }
+    /// Fits the plane heights `h` of the table's points `samples` (`[u, v, h]`, plane
+    /// coordinates); `None` if there are too few or they do not determine a quadratic.
+    fn fit(e1: P3, e2: P3, samples: &[[f64; 3]]) -> Option<Self> {
         if samples.len() < 12 {
             return None;
+        }
+        // The centre's sums in the order and from the `-0.0` that `Iterator::sum` uses.
+        let (mut sum_u, mut sum_v) = (-0.0f64, -0.0f64);
+        for &[u, v, _] in samples {
+            sum_u += u;
+            sum_v += v;
         }
         let k = samples.len() as f64;
         let (cu, cv) = (sum_u / k, sum_v / k);

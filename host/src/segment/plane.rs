@@ -934,6 +934,40 @@ mod tests {
     }
 
     #[test]
+    fn an_early_stopped_inlier_count_says_only_whether_it_beats() {
+        // 1 000 samples: 500 off the plane z = 1 (or facing away), then 500 on it.
+        let plane = TablePlane::through([0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 0.0, 1.0]).unwrap();
+        let mut idx = Vec::new();
+        let (mut pts, mut nrm) = (Vec::new(), Vec::new());
+        for j in 0..1000u32 {
+            let x = j as f32 * 1e-3;
+            let (z, n) = match j {
+                0..250 => (1.2, [0.0, 0.0, -1.0]),
+                250..500 => (1.0, [1.0, 0.0, 0.0]),
+                _ => (1.0 + 1e-4, [0.0, 0.0, -1.0]),
+            };
+            idx.push(j);
+            pts.push([x, -x, z]);
+            nrm.push(n);
+        }
+        let mut samples = Samples::default();
+        samples.gather(&idx, &pts, &nrm, |_| 0.01);
+        let cos_normal = 0.9;
+        assert_eq!(samples.inliers_over(&plane, cos_normal, None), Some(500));
+        for beat in 0..1000 {
+            let want = (500 > beat).then_some(500);
+            assert_eq!(
+                samples.inliers_over(&plane, cos_normal, Some(beat)),
+                want,
+                "{beat}"
+            );
+        }
+        let mut marks = Vec::new();
+        samples.mark_inliers(&plane, cos_normal, &mut marks);
+        assert!(marks.iter().enumerate().all(|(j, &m)| m == (j >= 500)));
+    }
+
+    #[test]
     fn plane_through_points_faces_the_camera() {
         let p = TablePlane::through([0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 0.0, 1.0]).unwrap();
         assert!((p.normal.z + 1.0).abs() < 1e-6 && (p.offset_m - 1.0).abs() < 1e-6);

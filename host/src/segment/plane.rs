@@ -7,8 +7,10 @@
 //! 2. RANSAC (seeded [`Pcg32`]): planes through three random candidates, scored by the
 //!    inliers among a fixed random subset of 1 000 candidates. An inlier lies within
 //!    [`SegmenterParams::plane_tolerance_m`] of the plane and its normal within
-//!    `plane_normal_deg` of the plane's. The best plane is refitted by least squares
-//!    (the smallest principal axis of the inliers' covariance), twice.
+//!    `plane_normal_deg` of the plane's. The first plane with the most inliers is the
+//!    best (a hypothesis's count stops once it cannot beat it, with the same result). The
+//!    best plane is refitted by least squares (the smallest principal axis of the
+//!    inliers' covariance), twice.
 //! 3. The dominant plane may be the floor under a small table. So the search repeats
 //!    among candidates more than `table_step_m` above the current plane, allowing only
 //!    planes within 10° of parallel; a plane found there with at least `min_table_share`

@@ -7,8 +7,10 @@
 //! 2. RANSAC (seeded [`Pcg32`]): planes through three random candidates, scored by the
 //!    inliers among a fixed random subset of 1 000 candidates. An inlier lies within
 //!    [`SegmenterParams::plane_tolerance_m`] of the plane and its normal within
-//!    `plane_normal_deg` of the plane's. The best plane is refitted by least squares
-//!    (the smallest principal axis of the inliers' covariance), twice.
+//!    `plane_normal_deg` of the plane's. The first plane with the most inliers is the
+//!    best (a hypothesis's count stops once it cannot beat it, with the same result). The
+//!    best plane is refitted by least squares (the smallest principal axis of the
+//!    inliers' covariance), twice.
 //! 3. The dominant plane may be the floor under a small table. So the search repeats
 //!    among candidates more than `table_step_m` above the current plane, allowing only
 //!    planes within 10° of parallel; a plane found there with at least `min_table_share`
@@ -186,32 +188,41 @@ impl Hull {
 /// Scratch of [`fit_table`], reused across frames.
 #[derive(Debug, Default)]
 pub(super) struct PlaneScratch {
-    /// The candidates' points and normals, gathered once from the grid: every pass over
-    /// them reads memory in order.
-    cand_pts: Vec<P3>,
-    cand_nrm: Vec<P3>,
-    /// Each candidate's grid cell.
+    /// The candidates' points, normals and inlier tolerances, gathered once from the
+    /// grid: every pass over them reads memory in order.
+    cands: Samples,
+    /// Each candidate's cell in the padded grid.
     cand_cell: Vec<u32>,
+    /// The candidates a search for a higher plane may use.
+    raised: Samples,
+    /// Pixels of the candidates, then candidates of `raised`.
+    idx: Vec<u32>,
     ransac: RansacScratch,
+    /// The candidates relative to the found plane.
+    coords: PlaneCoords,
+    /// Which candidates a pass over [`PlaneCoords`] selects.
+    selected: Vec<bool>,
     flat: Vec<[f32; 2]>,
     keys: Vec<u64>,
     /// The bend's samples: plane coordinates and height.
     bend_samples: Vec<[f64; 3]>,
     hull: Vec<[f32; 2]>,
     grid: Vec<u32>,
-    queue: Vec<[u32; 2]>,
+    queue: Vec<u32>,
 }
 
 /// Scratch of [`ransac`].
 #[derive(Debug, Default)]
 struct RansacScratch {
-    /// Indices of the candidates the search may use.
-    allowed: Vec<u32>,
+    /// The scoring samples, and their indices among the allowed candidates.
     samples: Samples,
+    drawn: Vec<u32>,
+    /// Which of the allowed candidates are inliers of the plane being refitted.
+    inlier: Vec<bool>,
 }
 
-/// The RANSAC scoring samples as planes (point x, y, z, normal x, y, z, inlier
-/// tolerance), so that counting the inliers of a hypothesis vectorises.
+/// Points with their normals and inlier tolerances as planes (point x, y, z, normal x, y,
+/// z, tolerance), so that the inlier tests of a plane vectorise.
 #[derive(Debug, Default)]
 struct Samples {
     p: [Vec<f32>; 3],
@@ -220,37 +231,121 @@ struct Samples {
 }
 
 impl Samples {
-    fn clear(&mut self) {
+    fn len(&self) -> usize {
+        self.tol_m.len()
+    }
+
+    /// Sizes the planes for `k` samples and returns them: points, normals, tolerances.
+    fn resized(&mut self, k: usize) -> ([&mut [f32]; 3], [&mut [f32]; 3], &mut [f32]) {
         for v in self.p.iter_mut().chain(&mut self.n) {
-            v.clear();
+            v.resize(k, 0.0);
         }
-        self.tol_m.clear();
+        self.tol_m.resize(k, 0.0);
+        let [px, py, pz] = &mut self.p;
+        let [nx, ny, nz] = &mut self.n;
+        (
+            [&mut px[..k], &mut py[..k], &mut pz[..k]],
+            [&mut nx[..k], &mut ny[..k], &mut nz[..k]],
+            &mut self.tol_m[..k],
+        )
     }
 
-    fn push(&mut self, p: P3, n: P3, tol_m: f32) {
-        for k in 0..3 {
-            self.p[k].push(p[k]);
-            self.n[k].push(n[k]);
+    /// The points `pts[i]`, normals `nrm[i]` and tolerances `tol_m(pts[i][2])` of the
+    /// indices `i` of `idx`, in order.
+    fn gather(&mut self, idx: &[u32], pts: &[P3], nrm: &[P3], tol_m: impl Fn(f32) -> f32) {
+        let ([px, py, pz], [nx, ny, nz], tol) = self.resized(idx.len());
+        for (j, &i) in idx.iter().enumerate() {
+            let (p, n) = (pts[i as usize], nrm[i as usize]);
+            [px[j], py[j], pz[j]] = p;
+            [nx[j], ny[j], nz[j]] = n;
+            tol[j] = tol_m(p[2]);
         }
-        self.tol_m.push(tol_m);
     }
 
-    /// How many samples are inliers of `plane` ([`is_inlier`]).
-    fn inliers(&self, plane: &TablePlane, cos_normal: f32) -> usize {
-        let k = self.tol_m.len();
+    /// Samples `j` of `other` for the indices `j` of `idx`, in order.
+    fn gather_from(&mut self, other: &Self, idx: &[u32]) {
+        let ([px, py, pz], [nx, ny, nz], tol) = self.resized(idx.len());
+        for (j, &i) in idx.iter().enumerate() {
+            let i = i as usize;
+            [px[j], py[j], pz[j]] = other.point(i);
+            [nx[j], ny[j], nz[j]] = other.n.each_ref().map(|v| v[i]);
+            tol[j] = other.tol_m[i];
+        }
+    }
+
+    /// How many of the points pass `test`.
+    fn count(&self, test: impl Fn(P3) -> bool) -> usize {
+        let k = self.len();
         let [px, py, pz] = self.p.each_ref().map(|v| &v[..k]);
-        let [nx, ny, nz] = self.n.each_ref().map(|v| &v[..k]);
+        (0..k)
+            .map(|j| usize::from(test([px[j], py[j], pz[j]])))
+            .sum()
+    }
+
+    fn point(&self, j: usize) -> P3 {
+        self.p.each_ref().map(|v| v[j])
+    }
+
+    /// The inlier tests of `plane` for the samples `range`, one per sample into `f(j, is)`:
+    /// an inlier lies within its tolerance of the plane, its normal within
+    /// `acos(cos_normal)` of the plane's.
+    #[inline(always)]
+    fn inlier_tests(
+        &self,
+        plane: &TablePlane,
+        cos_normal: f32,
+        range: core::ops::Range<usize>,
+        mut f: impl FnMut(usize, bool),
+    ) {
         let [a, b, c] = plane.normal_array();
-        let tol_m = &self.tol_m[..k];
-        let mut count = 0u32;
+        let [px, py, pz] = self.p.each_ref().map(|v| &v[range.clone()]);
+        let [nx, ny, nz] = self.n.each_ref().map(|v| &v[range.clone()]);
+        let tol_m = &self.tol_m[range.clone()];
+        let k = tol_m.len();
+        let (px, py, pz, nx, ny, nz) = (&px[..k], &py[..k], &pz[..k], &nx[..k], &ny[..k], &nz[..k]);
         for j in 0..k {
             let height = plane.height_of([px[j], py[j], pz[j]]);
             let facing = a * nx[j] + b * ny[j] + c * nz[j];
-            count += u32::from((height.abs() <= tol_m[j]) & (facing >= cos_normal));
+            f(j, (height.abs() <= tol_m[j]) & (facing >= cos_normal));
         }
-        count as usize
+    }
+
+    /// How many samples are inliers of `plane` ([`Self::inlier_tests`]), if more than
+    /// `beat`: `None` as soon as the samples left cannot lift the count above it (the
+    /// count goes by blocks of [`INLIER_BLOCK`] samples).
+    fn inliers_over(
+        &self,
+        plane: &TablePlane,
+        cos_normal: f32,
+        beat: Option<usize>,
+    ) -> Option<usize> {
+        let total = self.len();
+        let mut count = 0;
+        for start in (0..total).step_by(INLIER_BLOCK) {
+            if beat.is_some_and(|b| count + (total - start) <= b) {
+                return None;
+            }
+            let mut block = 0u32;
+            let end = (start + INLIER_BLOCK).min(total);
+            self.inlier_tests(plane, cos_normal, start..end, |_, is| {
+                block += u32::from(is);
+            });
+            count += block as usize;
+        }
+        beat.is_none_or(|b| count > b).then_some(count)
+    }
+
+    /// The inliers of `plane` into `out`, one flag per sample.
+    fn mark_inliers(&self, plane: &TablePlane, cos_normal: f32, out: &mut Vec<bool>) {
+        out.clear();
+        out.resize(self.len(), false);
+        let out = &mut out[..];
+        self.inlier_tests(plane, cos_normal, 0..out.len(), |j, is| out[j] = is);
     }
 }
+
+/// Samples per block of [`Samples::inliers_over`].
+const INLIER_BLOCK: usize = 128;
 
 /// The fitted table: plane, bend and the hull objects must stand in.
 #[derive(Debug, Clone)]
@@ -265,11 +360,6 @@ impl TableFit {
     pub(super) fn height_of(&self, p: P3) -> f32 {
         self.plane.height_of(p) - self.bend.at(p)
     }
-}
-
-fn is_inlier(plane: &TablePlane, p: P3, n: P3, cos_normal: f32, params: &SegmenterParams) -> bool {
-    plane.height_of(p).abs() <= params.plane_tolerance_m(p[2])
-        && dot(plane.normal_array(), n) >= cos_normal
 }
 
 /// The candidate grid's spacing, pixels: the grid's cells are the pixels
@@ -289,6 +379,7 @@ pub(super) fn is_grid_row(w: usize, h: usize, y: usize) -> bool {
 ///
 /// # Errors
 /// [`SegmentError::NoTablePlane`] if no plane holds `min_table_share` of the candidates.
+#[inline(never)] // called once a frame; kept apart so that profiles show it
 pub(super) fn fit_table(
     w: usize,
     h: usize,
@@ -302,32 +393,35 @@ pub(super) fn fit_table(
         w.saturating_sub(step / 2).div_ceil(step),
         h.saturating_sub(step / 2).div_ceil(step),
     );
-    // The pixel of each grid cell, in cell order (row by row, without a division).
+    // Each grid cell's index in the grid padded by one cell on every side, and its pixel,
+    // in cell order (row by row, without a division).
+    let gwp = gw + 2;
     let grid_pixels = || {
         (0..gh).flat_map(move |gy| {
-            (0..gw).map(move |gx| (step / 2 + gy * step) * w + step / 2 + gx * step)
+            (0..gw).map(move |gx| {
+                let pixel = (step / 2 + gy * step) * w + step / 2 + gx * step;
+                ((gy + 1) * gwp + gx + 1, pixel)
+            })
         })
     };
-    s.cand_pts.clear();
-    s.cand_nrm.clear();
     s.cand_cell.clear();
-    for (cell, i) in grid_pixels().enumerate() {
+    s.idx.clear();
+    for (cell, i) in grid_pixels() {
         if pts[i][2] > 0.0 && nrm[i] != [0.0; 3] {
-            s.cand_pts.push(pts[i]);
-            s.cand_nrm.push(nrm[i]);
             s.cand_cell.push(cell as u32);
+            s.idx.push(i as u32);
         }
     }
-    let (cand_pts, cand_nrm) = (&s.cand_pts, &s.cand_nrm);
-    let candidates = cand_pts.len();
+    s.cands
+        .gather(&s.idx, pts, nrm, |z| params.plane_tolerance_m(z));
+    let cands = &s.cands;
+    let candidates = cands.len();
     let needed = ((params.min_table_share * candidates as f32).ceil() as usize).max(3);
     let cos_normal = libm::cosf(params.plane_normal_deg.to_radians());
     let mut rng = Pcg32::new(params.seed);
 
     let rs = &mut s.ransac;
-    rs.allowed.clear();
-    rs.allowed.extend(0..candidates as u32);
-    let (mut plane, inliers) = ransac(cand_pts, cand_nrm, None, params, &mut rng, rs);
+    let (mut plane, inliers) = ransac(cands, None, params, &mut rng, rs);
     if inliers < needed {
         return Err(SegmentError::NoTablePlane {
             inliers,
@@ -337,22 +431,23 @@ pub(super) fn fit_table(
     }
     for _ in 0..MAX_RAISES {
         let base = plane;
-        rs.allowed.clear();
-        rs.allowed.extend(
-            (0..candidates as u32)
-                .filter(|&k| base.height_of(cand_pts[k as usize]) > params.table_step_m),
-        );
-        if rs.allowed.len() < needed {
+        let raised = |p| base.height_of(p) > params.table_step_m;
+        if cands.count(raised) < needed {
             break;
         }
-        let (higher, n) = ransac(cand_pts, cand_nrm, Some(&base), params, &mut rng, rs);
+        s.idx.clear();
+        s.idx
+            .extend((0..candidates as u32).filter(|&j| raised(cands.point(j as usize))));
+        s.raised.gather_from(cands, &s.idx);
+        let (higher, n) = ransac(&s.raised, Some(&base), params, &mut rng, rs);
         if n < needed {
             break;
         }
         plane = higher;
     }
 
-    // In-plane axes, the bend, then the hull of the largest connected inlier region.
+    // In-plane axes, the candidates in plane coordinates, the bend, then the hull of the
+    // largest connected inlier region.
     let n = plane.normal_array();
     let seed_axis = if n[0].abs() < 0.9 {
         [1.0, 0.0, 0.0]
@@ -361,23 +456,17 @@ pub(super) fn fit_table(
     };
     let e1 = normalise(cross(n, seed_axis));
     let e2 = cross(n, e1);
+    let coords = &mut s.coords;
+    coords.fill(cands, &plane, [e1, e2], cos_normal);
     let mut table = TableFit {
         plane,
         bend: Bend::flat(e1, e2),
         hull: Hull::new(e1, e2, &[]),
     };
     for widen in [2.5, 1.0, 1.0] {
-        let fit = &table;
-        let Some(bend) = Bend::fit(
-            e1,
-            e2,
-            cand_pts.iter().zip(cand_nrm).filter_map(|(&p, &q)| {
-                let tol = widen * params.plane_tolerance_m(p[2]);
-                (fit.height_of(p).abs() <= tol && dot(n, q) >= cos_normal)
-                    .then(|| (p, plane.height_of(p)))
-            }),
-            &mut s.bend_samples,
-        ) else {
+        coords.select(&cands.tol_m, &table.bend, widen, &mut s.selected);
+        coords.selected(&s.selected, &mut s.bend_samples);
+        let Some(bend) = Bend::fit(e1, e2, &s.bend_samples) else {
             break;
         };
         table.bend = bend;
@@ -385,18 +474,19 @@ pub(super) fn fit_table(
 
     // Only candidates can be table cells (a cell without a normal fails the normal test),
     // and they are in cell order: both passes read the compact candidates.
+    coords.select(&cands.tol_m, &table.bend, 1.0, &mut s.selected);
     s.grid.clear();
-    s.grid.resize(gw * gh, 0);
-    for ((&p, &q), &cell) in cand_pts.iter().zip(cand_nrm).zip(&s.cand_cell) {
-        if table.height_of(p).abs() <= params.plane_tolerance_m(p[2]) && dot(n, q) >= cos_normal {
+    s.grid.resize(gwp * (gh + 2), 0);
+    for (&on, &cell) in s.selected.iter().zip(&s.cand_cell) {
+        if on {
             s.grid[cell as usize] = 1;
         }
     }
-    let largest = largest_component(gw, gh, &mut s.grid, &mut s.queue);
+    let largest = largest_component(gwp, &mut s.grid, &mut s.queue);
     s.flat.clear();
-    for (&p, &cell) in cand_pts.iter().zip(&s.cand_cell) {
+    for ((&u, &v), &cell) in coords.u.iter().zip(&coords.v).zip(&s.cand_cell) {
         if s.grid[cell as usize] == largest {
-            s.flat.push([dot(e1, p), dot(e2, p)]);
+            s.flat.push([u, v]);
         }
     }
     convex_hull(&mut s.flat, &mut s.keys, &mut s.hull);
@@ -404,35 +494,93 @@ pub(super) fn fit_table(
     Ok(table)
 }
 
-/// Labels the 4-connected components of the cells marked `1` in `grid` with ids from 2
-/// on, and returns the id of the largest (0 if there is none).
-fn largest_component(gw: usize, gh: usize, grid: &mut [u32], queue: &mut Vec<[u32; 2]>) -> u32 {
+/// The candidates relative to the table plane, computed once for the passes of the bend
+/// and the hull: in-plane coordinates `u = e1 · p`, `v = e2 · p`, height over the plane,
+/// and whether the normal is within `plane_normal_deg` of the plane's.
+#[derive(Debug, Default)]
+struct PlaneCoords {
+    u: Vec<f32>,
+    v: Vec<f32>,
+    height_m: Vec<f32>,
+    facing: Vec<bool>,
+}
+
+impl PlaneCoords {
+    fn fill(&mut self, cands: &Samples, plane: &TablePlane, [e1, e2]: [P3; 2], cos_normal: f32) {
+        let k = cands.len();
+        let n = plane.normal_array();
+        self.u.resize(k, 0.0);
+        self.v.resize(k, 0.0);
+        self.height_m.resize(k, 0.0);
+        self.facing.resize(k, false);
+        let (u, v) = (&mut self.u[..k], &mut self.v[..k]);
+        let (height_m, facing) = (&mut self.height_m[..k], &mut self.facing[..k]);
+        let [px, py, pz] = cands.p.each_ref().map(|v| &v[..k]);
+        let [nx, ny, nz] = cands.n.each_ref().map(|v| &v[..k]);
+        for j in 0..k {
+            let p = [px[j], py[j], pz[j]];
+            u[j] = dot(e1, p);
+            v[j] = dot(e2, p);
+            height_m[j] = plane.height_of(p);
+            facing[j] = dot(n, [nx[j], ny[j], nz[j]]) >= cos_normal;
+        }
+    }
+
+    /// Marks in `out` the candidates within `widen` times their tolerances `tol_m` of
+    /// plane plus `bend` whose normal faces the plane's.
+    fn select(&self, tol_m: &[f32], bend: &Bend, widen: f32, out: &mut Vec<bool>) {
+        let k = self.u.len();
+        out.clear();
+        out.resize(k, false);
+        let (u, v, height_m) = (&self.u[..k], &self.v[..k], &self.height_m[..k]);
+        let (tol_m, facing, out) = (&tol_m[..k], &self.facing[..k], &mut out[..k]);
+        for j in 0..k {
+            let off = height_m[j] - bend.at_uv(u[j], v[j]);
+            out[j] = (off.abs() <= widen * tol_m[j]) & facing[j];
+        }
+    }
+
+    /// `(u, v, height)` of the candidates marked in `selected`, in order, into `out`.
+    fn selected(&self, selected: &[bool], out: &mut Vec<[f64; 3]>) {
+        let k = selected.len();
+        // Every candidate is written at the next free place, which moves on past the
+        // selected ones only.
+        out.clear();
+        out.resize(k, [0.0; 3]);
+        let (u, v, height_m) = (&self.u[..k], &self.v[..k], &self.height_m[..k]);
+        let mut next = 0;
+        for (j, &on) in selected.iter().enumerate() {
+            if let Some(o) = out.get_mut(next) {
+                *o = [u[j], v[j], height_m[j]].map(f64::from);
+            }
+            next += usize::from(on);
+        }
+        out.truncate(next);
+    }
+}
+
+/// Labels the 4-connected components of the cells marked `1` in `grid` (rows of `gwp`
+/// cells, the first and last row and column unmarked) with ids from 2 on, in the order of
+/// their first cells, and returns the id of the largest (the first of equals; 0 if there
+/// is none).
+fn largest_component(gwp: usize, grid: &mut [u32], queue: &mut Vec<u32>) -> u32 {
     let (mut best, mut best_size, mut next) = (0, 0, 2);
-    for start in 0..gw * gh {
+    for start in 0..grid.len() {
         if grid[start] != 1 {
             continue;
         }
         queue.clear();
-        // Cells as (x, y), so that no division finds a cell's column.
-        queue.push([(start % gw) as u32, (start / gw) as u32]);
+        queue.push(start as u32);
         grid[start] = next;
         let mut head = 0;
-        while let Some(&[x, y]) = queue.get(head) {
+        while let Some(&g) = queue.get(head) {
             head += 1;
-            let (x, y) = (x as usize, y as usize);
-            let g = y * gw + x;
-            for (nb, nx, ny) in [
-                (x > 0).then(|| (g - 1, x - 1, y)),
-                (x + 1 < gw).then(|| (g + 1, x + 1, y)),
-                (y > 0).then(|| (g - gw, x, y - 1)),
-                (y + 1 < gh).then(|| (g + gw, x, y + 1)),
-            ]
-            .into_iter()
-            .flatten()
-            {
+            // A marked cell is inside the unmarked border: its neighbours exist.
+            let g = g as usize;
+            for nb in [g - 1, g + 1, g - gwp, g + gwp] {
                 if grid[nb] == 1 {
                     grid[nb] = next;
-                    queue.push([nx as u32, ny as u32]);
+                    queue.push(nb as u32);
                 }
             }
         }
@@ -475,44 +623,66 @@ impl Bend {
         [1.0, u, v, u * u, u * v, v * v]
     }
 
-    /// Fits the plane heights `(p, h)` of the table's points; `None` if there are too few or
-    /// they do not determine a quadratic.
-    fn fit(
-        e1: P3,
-        e2: P3,
-        points: impl Iterator<Item = (P3, f32)>,
-        samples: &mut Vec<[f64; 3]>,
-    ) -> Option<Self> {
-        samples.clear();
-        // The centre's sums along the way, in the order and from the `-0.0` that
-        // `Iterator::sum` uses.
-        let (mut sum_u, mut sum_v) = (-0.0f64, -0.0f64);
-        for (p, h) in points {
-            let (u, v) = (f64::from(dot(e1, p)), f64::from(dot(e2, p)));
-            sum_u += u;
-            sum_v += v;
-            samples.push([u, v, f64::from(h)]);
-        }
+    /// Fits the plane heights `h` of the table's points `samples` (`[u, v, h]`, plane
+    /// coordinates); `None` if there are too few or they do not determine a quadratic.
+    fn fit(e1: P3, e2: P3, samples: &[[f64; 3]]) -> Option<Self> {
         if samples.len() < 12 {
             return None;
         }
+        // The centre's sums in the order and from the `-0.0` that `Iterator::sum` uses.
+        let (mut sum_u, mut sum_v) = (-0.0f64, -0.0f64);
+        for &[u, v, _] in samples {
+            sum_u += u;
+            sum_v += v;
+        }
         let k = samples.len() as f64;
         let (cu, cv) = (sum_u / k, sum_v / k);
-        // The normal equations: `ata` is symmetric, so only its upper triangle is summed
-        // (each entry the same products in the same order) and then mirrored.
-        let mut upper = [[0.0f64; 6]; 6];
-        let mut tb = [0.0f64; 6];
+        // The normal equations `Σ t tᵀ c = Σ t h` over the terms `t`. Each entry of the
+        // symmetric `Σ t tᵀ` is one sum of products in sample order; `t₀ = 1`, so row 0
+        // holds `k` and the sums of the terms, which are also the entries `(1, 1)`,
+        // `(1, 2)` and `(2, 2)` (the same products). The other sums take two passes, so
+        // that each pass's sums stay in registers.
+        let mut low = [0.0f64; 11];
         for &[u, v, h] in samples.iter() {
-            let t = Self::terms(u - cu, v - cv);
-            for a in 0..6 {
-                for b in a..6 {
-                    upper[a][b] += t[a] * t[b];
-                }
-                tb[a] += t[a] * h;
+            let [_, u, v, uu, uv, vv] = Self::terms(u - cu, v - cv);
+            let add = [u, v, uu, uv, vv, h, u * h, v * h, uu * h, uv * h, vv * h];
+            for (s, a) in low.iter_mut().zip(add) {
+                *s += a;
             }
         }
+        let mut high = [0.0f64; 12];
+        for &[u, v, _] in samples.iter() {
+            let [_, u, v, uu, uv, vv] = Self::terms(u - cu, v - cv);
+            let add = [
+                u * uu,
+                u * uv,
+                u * vv,
+                v * uu,
+                v * uv,
+                v * vv,
+                uu * uu,
+                uu * uv,
+                uu * vv,
+                uv * uv,
+                uv * vv,
+                vv * vv,
+            ];
+            for (s, a) in high.iter_mut().zip(add) {
+                *s += a;
+            }
+        }
+        let [su, sv, suu, suv, svv, sh, suh, svh, suuh, suvh, svvh] = low;
+        let [h13, h14, h15, h23, h24, h25, h33, h34, h35, h44, h45, h55] = high;
+        let upper = [
+            [k, su, sv, suu, suv, svv],
+            [0.0, suu, suv, h13, h14, h15],
+            [0.0, 0.0, svv, h23, h24, h25],
+            [0.0, 0.0, 0.0, h33, h34, h35],
+            [0.0, 0.0, 0.0, 0.0, h44, h45],
+            [0.0, 0.0, 0.0, 0.0, 0.0, h55],
+        ];
         let ata = nalgebra::Matrix6::from_fn(|a, b| upper[a.min(b)][a.max(b)]);
-        let atb = nalgebra::Vector6::from(tb);
+        let atb = nalgebra::Vector6::from([sh, suh, svh, suuh, suvh, svvh]);
         let c = ata.cholesky()?.solve(&atb);
         let coef = [c[0], c[1], c[2], c[3], c[4], c[5]].map(|v| v as f32);
         coef.iter().all(|v| v.is_finite()).then_some(Self {
@@ -525,10 +695,12 @@ impl Bend {
 
     /// The table's height over the plane under `p`, metres.
     fn at(&self, p: P3) -> f32 {
-        let (u, v) = (
-            dot(self.e1, p) - self.centre[0],
-            dot(self.e2, p) - self.centre[1],
-        );
+        self.at_uv(dot(self.e1, p), dot(self.e2, p))
+    }
+
+    /// [`Self::at`] at the plane coordinates `u = e1 · p`, `v = e2 · p`.
+    fn at_uv(&self, u: f32, v: f32) -> f32 {
+        let (u, v) = (u - self.centre[0], v - self.centre[1]);
         let c = &self.coef;
         (c[0] + c[1] * u + c[2] * v + c[3] * u * u + c[4] * u * v + c[5] * v * v)
             .clamp(-MAX_BEND_M, MAX_BEND_M)
@@ -540,12 +712,10 @@ fn normalise(v: P3) -> P3 {
     [v[0] / len, v[1] / len, v[2] / len]
 }
 
-/// Best plane among the points `pts` (normals `nrm`) of `s.allowed` (optionally
-/// near-parallel to `parallel_to`), refitted; returns it and its inlier count among
-/// `s.allowed`.
+/// Best plane among the candidates `allowed` (optionally near-parallel to
+/// `parallel_to`), refitted; returns it and its inlier count among `allowed`.
 fn ransac(
-    pts: &[P3],
-    nrm: &[P3],
+    allowed: &Samples,
     parallel_to: Option<&TablePlane>,
     params: &SegmenterParams,
     rng: &mut Pcg32,
@@ -557,21 +727,20 @@ fn ransac(
         normal: Vector3::new(0.0, 0.0, -1.0),
         offset_m: 1.0,
     };
-    let m = s.allowed.len();
+    let m = allowed.len();
     if m < 3 {
         return (fallback, 0);
     }
     let bound = m as u32;
-    // The scoring samples, with their inlier tolerances computed once.
-    s.samples.clear();
-    for _ in 0..SCORE_SAMPLES.min(m) {
-        let i = s.allowed[rng.below(bound) as usize] as usize;
-        s.samples
-            .push(pts[i], nrm[i], params.plane_tolerance_m(pts[i][2]));
-    }
+    s.drawn.clear();
+    s.drawn
+        .extend((0..SCORE_SAMPLES.min(m)).map(|_| rng.below(bound)));
+    s.samples.gather_from(allowed, &s.drawn);
+    // A hypothesis replaces the best only with more inliers, so its count stops as soon
+    // as it cannot: the same best plane as full counts.
     let mut best: Option<(TablePlane, usize)> = None;
     for _ in 0..params.ransac_iterations {
-        let pick = |rng: &mut Pcg32| pts[s.allowed[rng.below(bound) as usize] as usize];
+        let pick = |rng: &mut Pcg32| allowed.point(rng.below(bound) as usize);
         let (a, b, c) = (pick(rng), pick(rng), pick(rng));
         let Some(plane) = TablePlane::through(a, b, c) else {
             continue;
@@ -581,8 +750,10 @@ fn ransac(
         {
             continue;
         }
-        let count = s.samples.inliers(&plane, cos_normal);
-        if best.is_none_or(|(_, n)| count > n) {
+        if let Some(count) = s
+            .samples
+            .inliers_over(&plane, cos_normal, best.map(|(_, n)| n))
+        {
             best = Some((plane, count));
         }
     }
@@ -590,43 +761,46 @@ fn ransac(
         return (fallback, 0);
     };
     for _ in 0..2 {
-        let Some(refit) = refit(pts, nrm, &plane, cos_normal, params, &s.allowed) else {
+        allowed.mark_inliers(&plane, cos_normal, &mut s.inlier);
+        let Some(refit) = refit(allowed, &s.inlier, &plane) else {
             break;
         };
         plane = refit;
     }
-    let count = s
-        .allowed
-        .iter()
-        .filter(|&&i| is_inlier(&plane, pts[i as usize], nrm[i as usize], cos_normal, params))
-        .count();
+    let count = allowed
+        .inliers_over(&plane, cos_normal, None)
+        .unwrap_or_default();
     (plane, count)
 }
 
-/// Least-squares plane through the inliers of `plane` among `idx`.
-fn refit(
-    pts: &[P3],
-    nrm: &[P3],
-    plane: &TablePlane,
-    cos_normal: f32,
-    params: &SegmenterParams,
-    idx: &[u32],
-) -> Option<TablePlane> {
+/// Least-squares plane through the points of `pts` marked in `inlier` (the inliers of
+/// `plane`).
+fn refit(pts: &Samples, inlier: &[bool], plane: &TablePlane) -> Option<TablePlane> {
+    // Count, sums and the upper triangle of the sums of `p pᵀ`, each in point order (the
+    // product of two `f32` is exact in `f64`, so the mirrored triangle is the full sum).
     let mut n = 0.0f64;
-    let mut sum = Vector3::<f64>::zeros();
-    let mut sq = Matrix3::<f64>::zeros();
-    for &i in idx {
-        let p = pts[i as usize];
-        if is_inlier(plane, p, nrm[i as usize], cos_normal, params) {
-            let v = Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
-            n += 1.0;
-            sum += v;
-            sq += v * v.transpose();
+    let mut sum = [0.0f64; 3];
+    let mut sq = [0.0f64; 6];
+    let [px, py, pz] = pts.p.each_ref().map(|v| &v[..inlier.len()]);
+    for (j, _) in inlier.iter().enumerate().filter(|(_, on)| **on) {
+        let [x, y, z] = [px[j], py[j], pz[j]].map(f64::from);
+        n += 1.0;
+        for (s, a) in sum.iter_mut().zip([x, y, z]) {
+            *s += a;
+        }
+        for (s, a) in sq
+            .iter_mut()
+            .zip([x * x, x * y, x * z, y * y, y * z, z * z])
+        {
+            *s += a;
         }
     }
     if n < 3.0 {
         return None;
     }
+    let sum = Vector3::from(sum);
+    let [xx, xy, xz, yy, yz, zz] = sq;
+    let sq = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
     let mean = sum / n;
     let cov = sq / n - mean * mean.transpose();
     let eig = SymmetricEigen::new(cov);
@@ -759,6 +933,40 @@ mod tests {
         let bits =
             |v: &[[f32; 2]]| -> Vec<[u32; 2]> { v.iter().map(|p| p.map(f32::to_bits)).collect() };
         assert_eq!(bits(&pts), bits(&expected));
+    }
+
+    #[test]
+    fn an_early_stopped_inlier_count_says_only_whether_it_beats() {
+        // 1 000 samples: 500 off the plane z = 1 (or facing away), then 500 on it.
+        let plane = TablePlane::through([0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 0.0, 1.0]).unwrap();
+        let mut idx = Vec::new();
+        let (mut pts, mut nrm) = (Vec::new(), Vec::new());
+        for j in 0..1000u32 {
+            let x = j as f32 * 1e-3;
+            let (z, n) = match j {
+                0..250 => (1.2, [0.0, 0.0, -1.0]),
+                250..500 => (1.0, [1.0, 0.0, 0.0]),
+                _ => (1.0 + 1e-4, [0.0, 0.0, -1.0]),
+            };
+            idx.push(j);
+            pts.push([x, -x, z]);
+            nrm.push(n);
+        }
+        let mut samples = Samples::default();
+        samples.gather(&idx, &pts, &nrm, |_| 0.01);
+        let cos_normal = 0.9;
+        assert_eq!(samples.inliers_over(&plane, cos_normal, None), Some(500));
+        for beat in 0..1000 {
+            let want = (500 > beat).then_some(500);
+            assert_eq!(
+                samples.inliers_over(&plane, cos_normal, Some(beat)),
+                want,
+                "{beat}"
+            );
+        }
+        let mut marks = Vec::new();
+        samples.mark_inliers(&plane, cos_normal, &mut marks);
+        assert!(marks.iter().enumerate().all(|(j, &m)| m == (j >= 500)));
     }
 
     #[test]

@@ -178,33 +178,45 @@ fn stats<const N: usize>(
 ) -> Stats {
     let tap = i1.tap(px as f32 + u, py as f32 + v, N);
     let [w00, w01, w10, w11] = [tap.w00, tap.w01, tap.w10, tap.w11].map(f32x4::splat);
+    // The three planes cut to one length, so that one bounds check serves all three rows.
+    let len = t.i0.len().min(t.gx.len()).min(t.gy.len());
+    let (i0, gx, gy) = (&t.i0[..len], &t.gx[..len], &t.gy[..len]);
+    // Row `k` of the block of I1 the samples read, as lane groups from its first and its
+    // second value; each row serves as the lower row of one patch row and the upper of
+    // the next.
+    let block = |k: usize| {
+        let s = &i1.data[tap.index + k * i1.stride..][..=N];
+        (lanes::<N>(s), lanes::<N>(&s[1..]))
+    };
     // Per lane group: the column sums of r, gx·r, gy·r and r².
     let mut acc = [[f32x4::ZERO; 4]; MAX_PATCH_PX / LANES];
     let acc = &mut acc[..N / LANES];
+    let mut upper = block(0);
     for row in 0..N {
-        let a = &i1.data[tap.index + row * i1.stride..][..=N];
-        let b = &i1.data[tap.index + (row + 1) * i1.stride..][..=N];
+        let lower = block(row + 1);
         let off = (py + row) * t.w + px;
-        let (a0, a1) = (lanes::<N>(a), lanes::<N>(&a[1..]));
-        let (b0, b1) = (lanes::<N>(b), lanes::<N>(&b[1..]));
-        let (ti, gx) = (lanes::<N>(&t.i0[off..]), lanes::<N>(&t.gx[off..]));
-        let gy = lanes::<N>(&t.gy[off..]);
+        let (ti, gx, gy) = (lanes::<N>(&i0[off..]), lanes::<N>(&gx[off..]), lanes::<N>(&gy[off..]));
         for (g, [r, gxr, gyr, rr]) in acc.iter_mut().enumerate() {
             let at = |s: &[[f32; LANES]]| f32x4::new(s[g]);
-            let d = w00 * at(a0) + w01 * at(a1) + w10 * at(b0) + w11 * at(b1) - at(ti);
+            let d = w00 * at(upper.0) + w01 * at(upper.1) + w10 * at(lower.0) + w11 * at(lower.1)
+                - at(ti);
             *r += d;
             *gxr += at(gx) * d;
             *gyr += at(gy) * d;
             *rr += d * d;
         }
+        upper = lower;
     }
-    let sum = |j: usize| acc.iter().flat_map(|a| a[j].to_array()).sum::<f32>();
-    Stats {
-        r: sum(0),
-        gxr: sum(1),
-        gyr: sum(2),
-        rr: sum(3),
+    // The four sums side by side: each group's lanes, transposed, are added in column
+    // order (the order of a sequential sum over the columns).
+    let mut sum = f32x4::splat(-0.0);
+    for a in acc.iter() {
+        for column in f32x4::transpose(*a) {
+            sum += column;
+        }
     }
+    let [r, gxr, gyr, rr] = sum.to_array();
+    Stats { r, gxr, gyr, rr }
 }
 
 /// Per-patch constants: the Gauss-Newton normal matrix inverse and the mean gradient.

@@ -481,6 +481,48 @@ mod tests {
         assert_eq!(same, ramp);
     }
 
+    /// Passes after the first look only next to the previous pass's changes; the result
+    /// must be that of passes over every pixel.
+    #[test]
+    fn later_passes_match_passes_over_every_pixel() {
+        let (w, h) = (37usize, 23usize);
+        let i0: Vec<f32> = (0..w * h)
+            .map(|i| (i * 7919 % 251) as f32 + 0.5 * (i % w) as f32)
+            .collect();
+        let i1: Vec<f32> = (0..w * h).map(|i| i0[(i + 2) % (w * h)]).collect();
+        let images = Pair {
+            w,
+            h,
+            i0: &i0,
+            i1: &i1,
+        };
+        // Blocks of flows with steps of several pixels between them.
+        let start: Vec<[f32; 2]> = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                [(x / 5 % 3) as f32 * 2.5, ((x + y) / 7 % 2) as f32 * -3.0]
+            })
+            .collect();
+        for (passes, reach) in [(2, 4), (3, 2), (4, 1), (3, 40)] {
+            let mut every = start.clone();
+            for _ in 0..passes {
+                let mut changed = Vec::new();
+                for y in 0..h {
+                    let mut row = Vec::new();
+                    select_row(images, &Rows::new(images, &every, y, reach), y, &mut row);
+                    changed.extend(row.into_iter().map(|(x, f)| (y * w + x, f)));
+                }
+                for (i, f) in changed {
+                    every[i] = f;
+                }
+            }
+            let mut sparse = start.clone();
+            select_at_boundaries(images, &mut sparse, passes, reach, &mut Vec::new());
+            assert_ne!(every, start, "passes {passes}, reach {reach}: nothing changed");
+            assert_eq!(sparse, every, "passes {passes}, reach {reach}");
+        }
+    }
+
     #[test]
     fn uniform_flow_and_odd_inputs_stay() {
         let (w, h) = (5, 3);

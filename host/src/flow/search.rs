@@ -235,9 +235,12 @@ impl PatchModel {
         // Column-wise sums (one lane per column), then a fixed-order total.
         let mut cols = [[f32x4::ZERO; 5]; MAX_PATCH_PX / LANES];
         let cols = &mut cols[..N / LANES];
+        // Both planes cut to one length: one bounds check serves both rows.
+        let len = t.gx.len().min(t.gy.len());
+        let (gx, gy) = (&t.gx[..len], &t.gy[..len]);
         for row in 0..N {
             let off = (py + row) * t.w + px;
-            let (gx, gy) = (lanes::<N>(&t.gx[off..]), lanes::<N>(&t.gy[off..]));
+            let (gx, gy) = (lanes::<N>(&gx[off..]), lanes::<N>(&gy[off..]));
             for (g, [cxx, cxy, cyy, cx, cy]) in cols.iter_mut().enumerate() {
                 let (gx, gy) = (f32x4::new(gx[g]), f32x4::new(gy[g]));
                 *cxx += gx * gx;

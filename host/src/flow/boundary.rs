@@ -257,28 +257,39 @@ fn reselect_row(
     }
     // The pixels that read a changed flow: at its own place, above or below it, and
     // those whose left or right candidate it is (at the row's ends, all whose clamped
-    // candidate falls on it).
-    let mut xs: Vec<usize> = above.iter().chain(below).map(|&(x, _)| x).collect();
+    // candidate falls on it); one bit each, so that they are visited once, in order.
+    let mut marked = vec![0u64; w.div_ceil(64)];
+    let mut mark = |x: usize| {
+        if let Some(word) = marked.get_mut(x / 64) {
+            *word |= 1 << (x % 64);
+        }
+    };
+    for &(p, _) in above.iter().chain(below) {
+        mark(p);
+    }
     for &(p, _) in own {
-        xs.push(p);
+        mark(p);
         if p == 0 {
-            xs.extend(0..=reach.min(w - 1));
+            (0..=reach.min(w - 1)).for_each(&mut mark);
         } else if let Some(x) = p.checked_add(reach).filter(|&x| x < w) {
-            xs.push(x);
+            mark(x);
         }
         if p == w - 1 {
-            xs.extend((w - 1).saturating_sub(reach)..w);
+            ((w - 1).saturating_sub(reach)..w).for_each(&mut mark);
         } else if let Some(x) = p.checked_sub(reach) {
-            xs.push(x);
+            mark(x);
         }
     }
-    xs.sort_unstable();
-    xs.dedup();
-    for x in xs {
-        if rows.spread(x)
-            && let Some(g) = rows.choose(images, x, y)
-        {
-            changes.push((x, g));
+    for (i, &word) in marked.iter().enumerate() {
+        let mut bits = word;
+        while bits != 0 {
+            let x = 64 * i + bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            if rows.spread(x)
+                && let Some(g) = rows.choose(images, x, y)
+            {
+                changes.push((x, g));
+            }
         }
     }
 }

@@ -173,12 +173,7 @@ const BLOCK: usize = 64;
 
 /// Row `y` of one pass over `rows`: the pixels that change, as `(x, new flow)`, in
 /// `changes`.
-fn select_row(
-    images: Pair<'_>,
-    rows: &Rows<'_>,
-    y: usize,
-    changes: &mut Vec<(usize, [f32; 2])>,
-) {
+fn select_row(images: Pair<'_>, rows: &Rows<'_>, y: usize, changes: &mut Vec<(usize, [f32; 2])>) {
     let (here, above, below, reach_px) = (rows.here, rows.above, rows.below, rows.reach);
     let w = here.len();
     let left = |x: usize| here[x.saturating_sub(reach_px)];
@@ -529,7 +524,10 @@ mod tests {
             }
             let mut sparse = start.clone();
             select_at_boundaries(images, &mut sparse, passes, reach, &mut Vec::new());
-            assert_ne!(every, start, "passes {passes}, reach {reach}: nothing changed");
+            assert_ne!(
+                every, start,
+                "passes {passes}, reach {reach}: nothing changed"
+            );
             assert_eq!(sparse, every, "passes {passes}, reach {reach}");
         }
     }

@@ -195,7 +195,11 @@ fn stats<const N: usize>(
     for row in 0..N {
         let lower = block(row + 1);
         let off = (py + row) * t.w + px;
-        let (ti, gx, gy) = (lanes::<N>(&i0[off..]), lanes::<N>(&gx[off..]), lanes::<N>(&gy[off..]));
+        let (ti, gx, gy) = (
+            lanes::<N>(&i0[off..]),
+            lanes::<N>(&gx[off..]),
+            lanes::<N>(&gy[off..]),
+        );
         for (g, [r, gxr, gyr, rr]) in acc.iter_mut().enumerate() {
             let at = |s: &[[f32; LANES]]| f32x4::new(s[g]);
             let d = w00 * at(upper.0) + w01 * at(upper.1) + w10 * at(lower.0) + w11 * at(lower.1)

@@ -14,7 +14,9 @@
 //! around it (`I1` sampled bilinearly, clamped at the border; grey levels); `f` wins ties.
 //! Elsewhere `f` stays. Each pass reads the previous pass's flow row by row (each row its
 //! own task) and lists the changes, written in once every row is done, so the result does
-//! not depend on the thread count.
+//! not depend on the thread count. A pass after the first examines only the pixels whose
+//! own flow or one of whose candidates the pass before changed: every other pixel would
+//! compare the same five flows as then, and stay again.
 //!
 //! [`FlowParams::boundary_passes`]: super::FlowParams::boundary_passes
 

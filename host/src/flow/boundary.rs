@@ -14,7 +14,9 @@
 //! around it (`I1` sampled bilinearly, clamped at the border; grey levels); `f` wins ties.
 //! Elsewhere `f` stays. Each pass reads the previous pass's flow row by row (each row its
 //! own task) and lists the changes, written in once every row is done, so the result does
-//! not depend on the thread count.
+//! not depend on the thread count. A pass after the first examines only the pixels whose
+//! own flow or one of whose candidates the pass before changed: every other pixel would
+//! compare the same five flows as then, and stay again.
 //!
 //! [`FlowParams::boundary_passes`]: super::FlowParams::boundary_passes
 
@@ -34,12 +36,19 @@ pub(crate) struct Pair<'a> {
     pub i1: &'a [f32],
 }
 
-/// Each row's changes of one pass, `(x, new flow)`: scratch of [`select_at_boundaries`],
-/// kept by the caller between calls (empty lists or garbage between calls).
+/// Each row's changes of a pass, `(x, new flow)`, for this pass and the one before (rows
+/// `0..h` and `h..2h`, their roles swapped every pass): scratch of
+/// [`select_at_boundaries`], kept by the caller between calls (empty lists or garbage
+/// between calls).
 pub(crate) type RowChanges = Vec<Vec<(usize, [f32; 2])>>;
 
 /// Runs `passes` passes of the selection over `flow` (`w x h`, row-major) with candidates
 /// `reach_px` pixels away; `changes` is scratch.
+///
+/// A pass after the first examines only the pixels next to the previous pass's changes:
+/// a pixel whose own flow and four candidates all kept their values compares the same
+/// flows as in that pass, where it stayed (a pixel that changed took a candidate's flow,
+/// more than [`SPREAD_PX`] from its own), so it stays again.
 pub(crate) fn select_at_boundaries(
     images: Pair<'_>,
     flow: &mut [[f32; 2]],
@@ -55,47 +64,122 @@ pub(crate) fn select_at_boundaries(
     // Few pixels change: each row lists its changes while every row reads the pass's
     // input, then they are written in. No copy of the field (2.4 MB at 640x480: its pages
     // faulted in by a one-shot `riseg flow`, and copied twice per estimate).
-    if changes.len() < h {
-        changes.resize_with(h, Vec::new);
+    if changes.len() < 2 * h {
+        changes.resize_with(2 * h, Vec::new);
     }
-    let changes = &mut changes[..h];
-    for _ in 0..passes {
+    let (mut now, mut before) = changes[..2 * h].split_at_mut(h);
+    for pass in 0..passes {
         let src = &*flow;
-        changes.par_iter_mut().enumerate().for_each(|(y, row)| {
+        let earlier = (pass > 0).then_some(&*before);
+        now.par_iter_mut().enumerate().for_each(|(y, row)| {
             row.clear();
-            select_row(images, src, y, reach_px, row);
+            let rows = Rows::new(images, src, y, reach_px);
+            match earlier {
+                None => select_row(images, &rows, y, row),
+                Some(earlier) => reselect_row(images, &rows, y, earlier, row),
+            }
         });
-        for (y, row) in changes.iter().enumerate() {
+        for (y, row) in now.iter().enumerate() {
             for &(x, f) in row {
                 if let Some(v) = flow.get_mut(y * w + x) {
                     *v = f;
                 }
             }
         }
+        core::mem::swap(&mut now, &mut before);
     }
+}
+
+/// The rows of the flow one row's selection reads: its own and those `reach` above and
+/// below (clamped to the image).
+struct Rows<'a> {
+    here: &'a [[f32; 2]],
+    above: &'a [[f32; 2]],
+    below: &'a [[f32; 2]],
+    reach: usize,
+}
+
+impl<'a> Rows<'a> {
+    fn new(images: Pair<'_>, src: &'a [[f32; 2]], y: usize, reach: usize) -> Self {
+        let (w, h) = (images.w, images.h);
+        let row = |r: usize| &src[r * w..][..w];
+        Self {
+            here: row(y),
+            above: row(y.saturating_sub(reach)),
+            below: row(y.saturating_add(reach).min(h - 1)),
+            reach,
+        }
+    }
+
+    /// Where pixel `x`'s left and right candidates lie (clamped to the row).
+    fn sides(&self, x: usize) -> (usize, usize) {
+        let w = self.here.len();
+        (
+            x.saturating_sub(self.reach),
+            x.saturating_add(self.reach).min(w - 1),
+        )
+    }
+
+    /// Pixel `x`'s four candidates: left, right, above, below.
+    fn candidates(&self, x: usize) -> [[f32; 2]; 4] {
+        let (l, r) = self.sides(x);
+        [self.here[l], self.here[r], self.above[x], self.below[x]]
+    }
+
+    /// Whether pixel `x` is examined: the spread test of [`select_row`] for one pixel,
+    /// its values computed as there.
+    fn spread(&self, x: usize) -> bool {
+        let w = self.here.len();
+        let (f, [left, right, up, down]) = (self.here[x], self.candidates(x));
+        let mut s: [f32; 2] =
+            core::array::from_fn(|c| larger((f[c] - up[c]).abs(), (f[c] - down[c]).abs()));
+        if x >= self.reach && x.saturating_add(self.reach) < w {
+            for (c, s) in s.iter_mut().enumerate() {
+                *s = larger(*s, larger((f[c] - left[c]).abs(), (f[c] - right[c]).abs()));
+            }
+        } else {
+            s[0] = larger(s[0], larger(gap(f, left), gap(f, right)));
+        }
+        larger(s[0], s[1]) > SPREAD_PX
+    }
+
+    /// The flow pixel `(x, y)` takes, if not its own: whichever candidate more than
+    /// [`SPREAD_PX`] away matches best over the window, if better than its own flow.
+    fn choose(&self, images: Pair<'_>, x: usize, y: usize) -> Option<[f32; 2]> {
+        let own = self.here[x];
+        let window = Window::new(images, x, y);
+        let mut best_cost = window.sad(images, own);
+        // The winning candidate's index; past the end while `own` wins.
+        let candidates = self.candidates(x);
+        let mut best = candidates.len();
+        for (i, &g) in candidates.iter().enumerate() {
+            if gap(own, g) <= SPREAD_PX {
+                continue;
+            }
+            let cost = window.sad(images, g);
+            if cost < best_cost {
+                (best, best_cost) = (i, cost);
+            }
+        }
+        candidates.get(best).copied()
+    }
+}
+
+/// The larger difference of two flows' components.
+fn gap(f: [f32; 2], g: [f32; 2]) -> f32 {
+    larger((g[0] - f[0]).abs(), (g[1] - f[1]).abs())
 }
 
 /// Pixels per block of [`select_row`]'s spread test.
 const BLOCK: usize = 64;
 
-/// Row `y` of one pass over `src`: the pixels that change, as `(x, new flow)`, in `changes`.
-fn select_row(
-    images: Pair<'_>,
-    src: &[[f32; 2]],
-    y: usize,
-    reach_px: usize,
-    changes: &mut Vec<(usize, [f32; 2])>,
-) {
-    let (w, h) = (images.w, images.h);
-    let row = |r: usize| &src[r * w..][..w];
-    let (here, above, below) = (
-        row(y),
-        row(y.saturating_sub(reach_px)),
-        row(y.saturating_add(reach_px).min(h - 1)),
-    );
+/// Row `y` of one pass over `rows`: the pixels that change, as `(x, new flow)`, in
+/// `changes`.
+fn select_row(images: Pair<'_>, rows: &Rows<'_>, y: usize, changes: &mut Vec<(usize, [f32; 2])>) {
+    let (here, above, below, reach_px) = (rows.here, rows.above, rows.below, rows.reach);
+    let w = here.len();
     let left = |x: usize| here[x.saturating_sub(reach_px)];
     let right = |x: usize| here[x.saturating_add(reach_px).min(w - 1)];
-    let gap = |f: [f32; 2], g: [f32; 2]| larger((g[0] - f[0]).abs(), (g[1] - f[1]).abs());
     let (flat, up, down) = (
         here.as_flattened(),
         above.as_flattened(),
@@ -144,24 +228,64 @@ fn select_row(
                     continue;
                 }
                 let x = start + j * GROUP + k;
-                let own = here[x];
-                let window = Window::new(images, x, y);
-                let mut best_cost = window.sad(images, own);
-                // The winning candidate's index; past the end while `own` wins.
-                let candidates = [left(x), right(x), above[x], below[x]];
-                let mut best = candidates.len();
-                for (i, &g) in candidates.iter().enumerate() {
-                    if gap(own, g) <= SPREAD_PX {
-                        continue;
-                    }
-                    let cost = window.sad(images, g);
-                    if cost < best_cost {
-                        (best, best_cost) = (i, cost);
-                    }
-                }
-                if let Some(&g) = candidates.get(best) {
+                if let Some(g) = rows.choose(images, x, y) {
                     changes.push((x, g));
                 }
+            }
+        }
+    }
+}
+
+/// Row `y` of a pass after the first, over `rows`: as [`select_row`], but only at the
+/// pixels whose own flow or a candidate changed in the previous pass (`earlier`, its
+/// changes per row).
+fn reselect_row(
+    images: Pair<'_>,
+    rows: &Rows<'_>,
+    y: usize,
+    earlier: &[Vec<(usize, [f32; 2])>],
+    changes: &mut Vec<(usize, [f32; 2])>,
+) {
+    let (w, h, reach) = (images.w, images.h, rows.reach);
+    let (up, down) = (y.saturating_sub(reach), y.saturating_add(reach).min(h - 1));
+    let (own, above, below) = (&earlier[y], &earlier[up], &earlier[down]);
+    if own.is_empty() && above.is_empty() && below.is_empty() {
+        return;
+    }
+    // The pixels that read a changed flow: at its own place, above or below it, and
+    // those whose left or right candidate it is (at the row's ends, all whose clamped
+    // candidate falls on it); one bit each, so that they are visited once, in order.
+    let mut marked = vec![0u64; w.div_ceil(64)];
+    let mut mark = |x: usize| {
+        if let Some(word) = marked.get_mut(x / 64) {
+            *word |= 1 << (x % 64);
+        }
+    };
+    for &(p, _) in above.iter().chain(below) {
+        mark(p);
+    }
+    for &(p, _) in own {
+        mark(p);
+        if p == 0 {
+            (0..=reach.min(w - 1)).for_each(&mut mark);
+        } else if let Some(x) = p.checked_add(reach).filter(|&x| x < w) {
+            mark(x);
+        }
+        if p == w - 1 {
+            ((w - 1).saturating_sub(reach)..w).for_each(&mut mark);
+        } else if let Some(x) = p.checked_sub(reach) {
+            mark(x);
+        }
+    }
+    for (i, &word) in marked.iter().enumerate() {
+        let mut bits = word;
+        while bits != 0 {
+            let x = 64 * i + bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            if rows.spread(x)
+                && let Some(g) = rows.choose(images, x, y)
+            {
+                changes.push((x, g));
             }
         }
     }
@@ -224,14 +348,11 @@ impl Window {
             return window_sad_clamped(images, self.x, self.y, g);
         };
         let (ax, ay) = (f32x4::splat(g[0] - gx), f32x4::splat(g[1] - gy));
-        // Row k of the block, interpolated along x at the three sample columns.
+        // The block's rows lie inside `i1` (`w x h`, as `select_at_boundaries` checks):
+        // row k of the block, interpolated along x at the three sample columns.
         let across = |k: usize| {
-            let at = (top + k) * w + left;
-            let five = i1
-                .get(at..at + 5)
-                .and_then(|c| <[f32; 5]>::try_from(c).ok());
-            let [a0, a1, a2, a3, a4] = five.unwrap_or_default();
-            let (a, b) = (f32x4::new([a0, a1, a2, a3]), f32x4::new([a1, a2, a3, a4]));
+            let five = &i1[(top + k) * w + left..][..5];
+            let (a, b) = (lanes(five, 0), lanes(five, 1));
             a + ax * (b - a)
         };
         let mut upper = across(0);
@@ -366,6 +487,51 @@ mod tests {
         select_at_boundaries(images, &mut same, 0, 4, &mut changes);
         select_at_boundaries(images, &mut same, 2, 0, &mut changes);
         assert_eq!(same, ramp);
+    }
+
+    /// Passes after the first look only next to the previous pass's changes; the result
+    /// must be that of passes over every pixel.
+    #[test]
+    fn later_passes_match_passes_over_every_pixel() {
+        let (w, h) = (37usize, 23usize);
+        let i0: Vec<f32> = (0..w * h)
+            .map(|i| (i * 7919 % 251) as f32 + 0.5 * (i % w) as f32)
+            .collect();
+        let i1: Vec<f32> = (0..w * h).map(|i| i0[(i + 2) % (w * h)]).collect();
+        let images = Pair {
+            w,
+            h,
+            i0: &i0,
+            i1: &i1,
+        };
+        // Blocks of flows with steps of several pixels between them.
+        let start: Vec<[f32; 2]> = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                [(x / 5 % 3) as f32 * 2.5, ((x + y) / 7 % 2) as f32 * -3.0]
+            })
+            .collect();
+        for (passes, reach) in [(2, 4), (3, 2), (4, 1), (3, 40)] {
+            let mut every = start.clone();
+            for _ in 0..passes {
+                let mut changed = Vec::new();
+                for y in 0..h {
+                    let mut row = Vec::new();
+                    select_row(images, &Rows::new(images, &every, y, reach), y, &mut row);
+                    changed.extend(row.into_iter().map(|(x, f)| (y * w + x, f)));
+                }
+                for (i, f) in changed {
+                    every[i] = f;
+                }
+            }
+            let mut sparse = start.clone();
+            select_at_boundaries(images, &mut sparse, passes, reach, &mut Vec::new());
+            assert_ne!(
+                every, start,
+                "passes {passes}, reach {reach}: nothing changed"
+            );
+            assert_eq!(sparse, every, "passes {passes}, reach {reach}");
+        }
     }
 
     #[test]

@@ -60,7 +60,7 @@ fn densify_n<const N: usize>(
             .zip(patches)
             .map(|((px, py), p)| i1.tap(px as f32 + p.u, py as f32 + p.v, size)),
     );
-    let taps = &*taps;
+    let (taps, data) = (&*taps, &*i1.data);
     let kappa = f32x4::splat(outlier_per_grey);
     let mut sums = pool.zeroed(3 * w * h);
     sums.par_chunks_mut(3 * w)
@@ -68,6 +68,8 @@ fn densify_n<const N: usize>(
         .for_each(|(y, chunk)| {
             let (sw, rest) = chunk.split_at_mut(w);
             let (su, sv) = rest.split_at_mut(w);
+            // All four rows cut to `w`: one bounds check serves them all.
+            let (sw, su, sv) = (&mut sw[..w], &mut su[..w], &mut sv[..w]);
             let first = ys.partition_point(|&py| py + size <= y);
             let t_row = &i0[y * w..][..w];
             for (j, &py) in ys.iter().enumerate().skip(first) {
@@ -78,8 +80,8 @@ fn densify_n<const N: usize>(
                 let row_patches = &patches[j * xs.len()..][..xs.len()];
                 let row_taps = &taps[j * xs.len()..][..xs.len()];
                 for ((&px, p), tap) in xs.iter().zip(row_patches).zip(row_taps) {
-                    let a = &i1.data[tap.index + r * i1.stride..][..=N];
-                    let b = &i1.data[tap.index + (r + 1) * i1.stride..][..=N];
+                    let a = &data[tap.index + r * i1.stride..][..=N];
+                    let b = &data[tap.index + (r + 1) * i1.stride..][..=N];
                     let (a0, a1) = (lanes::<N>(a), lanes::<N>(&a[1..]));
                     let (b0, b1) = (lanes::<N>(b), lanes::<N>(&b[1..]));
                     let tc = lanes::<N>(&t_row[px..]);

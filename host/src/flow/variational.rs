@@ -427,8 +427,11 @@ fn warp(sp: &Split, c: usize, inp: &RefineInput<'_>, uv: &Planes, deriv: &mut Pl
                 &inp.gx0[y * w..][..w],
                 &inp.gy0[y * w..][..w],
             );
-            for k in 1..=n {
-                let x = 2 * (k - 1) + s;
+            // Slot k + 1 holds pixel x = 2k + s.
+            let (ur, vr) = (&ur[1..=n], &vr[1..=n]);
+            let (ixr, iyr, izr) = (&mut ixr[1..=n], &mut iyr[1..=n], &mut izr[1..=n]);
+            for k in 0..n {
+                let x = 2 * k + s;
                 let (xw, yw) = (x as f32 + ur[k], y as f32 + vr[k]);
                 let mut d = [0.0f32; 3];
                 if (0.0..=wmax).contains(&xw) && (0.0..=hmax).contains(&yw) {

@@ -316,34 +316,57 @@ pub(super) fn grow_segments(
             *st = u8::from(f != 0);
         }
     });
-    for (i, &link) in links.iter().enumerate().take(rows.end).skip(rows.start) {
-        if link & Links::JOIN_RIGHT != 0 {
-            union(&mut s.parent, i as u32, i as u32 + 1);
+    // The serial passes skip chunks of pixels whose flags `any` (the union of them) shows
+    // nothing to do there.
+    let chunks = || {
+        rows.clone().step_by(CHUNK_PX).map(|i0| {
+            let i1 = (i0 + CHUNK_PX).min(rows.end);
+            (i0..i1, links[i0..i1].iter().fold(0, |any, &l| any | l))
+        })
+    };
+    for (chunk, any) in chunks() {
+        if any & (Links::JOIN_RIGHT | Links::JOIN_DOWN) == 0 {
+            continue;
         }
-        if link & Links::JOIN_DOWN != 0 {
-            union(&mut s.parent, i as u32, (i + w) as u32);
+        for i in chunk {
+            let link = links[i];
+            if link & Links::JOIN_RIGHT != 0 {
+                union(&mut s.parent, i as u32, i as u32 + 1);
+            }
+            if link & Links::JOIN_DOWN != 0 {
+                union(&mut s.parent, i as u32, (i + w) as u32);
+            }
         }
     }
-    // Dense ids in the order of the roots; the seeds of rule 2 in row-major order.
+    // Dense ids in the order of the roots; the seeds of rule 2 in row-major order. A
+    // pixel's parent is an earlier pixel of its tree (`union` and `find` only ever point
+    // to a smaller index), whose id is already that of the root.
     s.id.resize(n, NONE);
     s.id[..rows.start].fill(NONE);
     s.id[rows.end..].fill(NONE);
     s.queue.clear();
     let mut count = 0u32;
-    for (i, &link) in links.iter().enumerate().take(rows.end).skip(rows.start) {
-        if link & Links::GROWN == 0 {
-            s.id[i] = NONE;
+    for (chunk, any) in chunks() {
+        if any & Links::GROWN == 0 {
+            s.id[chunk].fill(NONE);
             continue;
         }
-        let r = find(&mut s.parent, i as u32) as usize;
-        s.id[i] = if r == i {
-            count += 1;
-            count - 1
-        } else {
-            s.id[r]
-        };
-        if link & Links::SEED != 0 {
-            s.queue.push(i as u32);
+        for i in chunk {
+            let link = links[i];
+            if link & Links::GROWN == 0 {
+                s.id[i] = NONE;
+                continue;
+            }
+            let up = s.parent[i] as usize;
+            s.id[i] = if up == i {
+                count += 1;
+                count - 1
+            } else {
+                s.id[up]
+            };
+            if link & Links::SEED != 0 {
+                s.queue.push(i as u32);
+            }
         }
     }
 
@@ -373,30 +396,40 @@ pub(super) fn grow_segments(
     s.pairs.clear();
     let mut sum = RootSum::default();
     for y in y0..y1 {
-        for x in 0..w {
-            let i = y * w + x;
-            let a = s.id[i];
-            if a == NONE {
+        for x0 in (0..w).step_by(CHUNK_PX) {
+            let xs = x0..(x0 + CHUNK_PX).min(w);
+            // A chunk of pixels in no segment adds nothing.
+            if s.id[y * w + xs.start..y * w + xs.end]
+                .iter()
+                .fold(true, |all, &d| all & (d == NONE))
+            {
                 continue;
             }
-            sum.add(&mut s.area, a, inp.px_area_m2[i]);
-            if s.first[a as usize] == NONE {
-                s.first[a as usize] = i as u32;
-            }
-            for j in [(x + 1 < w).then_some(i + 1), (y + 1 < h).then_some(i + w)]
-                .into_iter()
-                .flatten()
-            {
-                let b = s.id[j];
-                if b == NONE || b == a {
+            for x in xs {
+                let i = y * w + x;
+                let a = s.id[i];
+                if a == NONE {
                     continue;
                 }
-                let (pi, pj) = (inp.pts[i], inp.pts[j]);
-                let jump = params.depth_jump_at_m(pi[2]);
-                if pi[2] > 0.0 && pj[2] > 0.0 && (pi[2] - pj[2]).abs() > jump {
-                    continue;
+                sum.add(&mut s.area, a, inp.px_area_m2[i]);
+                if s.first[a as usize] == NONE {
+                    s.first[a as usize] = i as u32;
                 }
-                s.pairs.push((a, b));
+                for j in [(x + 1 < w).then_some(i + 1), (y + 1 < h).then_some(i + w)]
+                    .into_iter()
+                    .flatten()
+                {
+                    let b = s.id[j];
+                    if b == NONE || b == a {
+                        continue;
+                    }
+                    let (pi, pj) = (inp.pts[i], inp.pts[j]);
+                    let jump = params.depth_jump_at_m(pi[2]);
+                    if pi[2] > 0.0 && pj[2] > 0.0 && (pi[2] - pj[2]).abs() > jump {
+                        continue;
+                    }
+                    s.pairs.push((a, b));
+                }
             }
         }
     }

@@ -354,6 +354,7 @@ pub(super) struct Moments {
     /// Sum of the points' depths, metres.
     depth_sum_m: f64,
     sum: [f64; 3],
+    /// Sums of the products of coordinates `a <= b` at `[a][b]` (the rest stays zero).
     outer: [[f64; 3]; 3],
 }
 
@@ -362,7 +363,8 @@ impl Moments {
         self.count += 1.0;
         for (a, pa) in p.iter().enumerate() {
             self.sum[a] += pa;
-            for (b, pb) in p.iter().enumerate() {
+            // The upper triangle: the lower one is the same sums (`pa · pb = pb · pa`).
+            for (b, pb) in p.iter().enumerate().skip(a) {
                 self.outer[a][b] += pa * pb;
             }
         }
@@ -376,8 +378,9 @@ impl Moments {
             return None;
         }
         let mean = self.sum.map(|v| v / self.count);
-        let cov =
-            nalgebra::Matrix3::from_fn(|a, b| self.outer[a][b] / self.count - mean[a] * mean[b]);
+        let cov = nalgebra::Matrix3::from_fn(|a, b| {
+            self.outer[a.min(b)][a.max(b)] / self.count - mean[a] * mean[b]
+        });
         let eig = cov.symmetric_eigen();
         let mut order = [0usize, 1, 2];
         order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));

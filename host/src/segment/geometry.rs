@@ -463,17 +463,21 @@ fn sum_taps<const N: usize>(
     x: usize,
     cz: f32,
     jump: f32,
-    [mut ax, mut ay, mut az, mut an]: [f32; 4],
+    [mut ax, mut ay, mut az, an]: [f32; 4],
 ) -> [f32; 4] {
+    // The points taken, counted in integers: `an` plus it is exactly what adding 1.0 a
+    // point gives (small integers).
+    let mut taken = 0u32;
     for [qx, qy, qz] in taps {
         // A tap without a reading is NaN ([`NO_READING`]): the test fails.
         let m = mask((qz[x] - cz).abs() <= jump);
         ax += keep(qx[x], m);
         ay += keep(qy[x], m);
         az += keep(qz[x], m);
-        an += keep(1.0, m);
+        // `m` is all ones (−1 as an integer) for a point taken.
+        taken = taken.wrapping_sub(m);
     }
-    [ax, ay, az, an]
+    [ax, ay, az, an + taken as i32 as f32]
 }
 
 /// All ones if `on`, else zero: a lane mask for [`keep`] and [`pick`].

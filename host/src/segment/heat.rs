@@ -130,8 +130,8 @@ pub(super) fn heatmap(
     // The least depth of a segment pixel (a filled hole's mean depth is no less).
     let mut z_min = f32::INFINITY;
     for (y, xs) in labelled_runs(w, inner, labels) {
-        for i in y * w + xs.start..y * w + xs.end {
-            let (l, p) = (labels[i], &inp.pts[i]);
+        let run_px = y * w + xs.start..y * w + xs.end;
+        for (&l, p) in labels[run_px.clone()].iter().zip(&inp.pts[run_px]) {
             if l == 0 || p[2] <= 0.0 {
                 continue;
             }
@@ -499,8 +499,11 @@ fn pack_cuts(
         return;
     }
     for (y, xs) in labelled_runs(inp.w, inner, inp.labels) {
-        for i in y * inp.w + xs.start..y * inp.w + xs.end {
-            let (l, p) = (inp.labels[i], inp.pts[i]);
+        let run_px = y * inp.w + xs.start..y * inp.w + xs.end;
+        for (i, (&l, &p)) in run_px
+            .clone()
+            .zip(inp.labels[run_px.clone()].iter().zip(&inp.pts[run_px]))
+        {
             if l == 0 || p[2] <= 0.0 {
                 continue;
             }

@@ -33,12 +33,6 @@ impl Window {
     pub(super) fn rows(self) -> impl Iterator<Item = (usize, core::ops::Range<usize>)> {
         (self.y0..self.y1).map(move |y| (y, self.x0..self.x1))
     }
-
-    /// The window's pixel indices in an image `w` pixels wide, in row-major order.
-    pub(super) fn pixels(self, w: usize) -> impl Iterator<Item = usize> {
-        self.rows()
-            .flat_map(move |(y, xs)| xs.map(move |x| y * w + x))
-    }
 }
 
 /// Squared distance (px²) from each pixel of `win` to the nearest pixel of `win` with

@@ -38,7 +38,7 @@ pub(super) fn cross(a: P3, b: P3) -> P3 {
 }
 
 /// Back-projects row `y` of `frame` into the planes `x`, `y`, `z` (`w` pixels): a pixel
-/// with a depth reading (finite, positive) gives its point, others `[0, 0, 0]`.
+/// with a depth reading (finite, positive) gives its point, others `[0, 0, NO_READING]`.
 /// Branch-free, since pixels without depth come and go along a row.
 fn back_project_row(
     frame: &RgbdFrame<'_>,
@@ -55,9 +55,14 @@ fn back_project_row(
         let m = mask((z > 0.0) & (z < f32::INFINITY));
         ox[x] = keep((x as f32 - k.cx) * ifx * z, m);
         oy[x] = keep(yc * z, m);
-        oz[x] = keep(z, m);
+        oz[x] = pick(z, NO_READING, m);
     }
 }
+
+/// The depth of a pixel without a reading in the smoothing's own buffers (the rows it
+/// reads and the result of its row pass): no comparison with it holds, so a tap without
+/// a reading fails the depth test by itself.
+const NO_READING: f32 = f32::NAN;
 
 /// The smoothed points of every row as three planes (x, y, z), each `pad` zero pixels
 /// wider on both sides than the image: what [`normals`] reads, with no bounds tests at the
@@ -107,7 +112,8 @@ pub(super) struct SmoothScratch {
 /// Per-row scratch of the smoothing: a padded input row, window sums and tolerances.
 #[derive(Debug, Default)]
 struct RowScratch {
-    /// Padded row planes x, y, z of the row pass's input (`w + 2r` each).
+    /// Padded row planes x, y, z of the row pass's input (`w + 2r` each; z is
+    /// [`NO_READING`] where there is none).
     row: [Vec<f32>; 3],
     /// Window sums x, y, z and count, and each centre's depth tolerance.
     sums: WindowSums,
@@ -116,7 +122,12 @@ struct RowScratch {
 impl RowScratch {
     fn with_width(w: usize, r: usize) -> Self {
         Self {
-            row: core::array::from_fn(|_| vec![0.0; w + 2 * r]),
+            // The padding has no reading.
+            row: [
+                vec![0.0; w + 2 * r],
+                vec![0.0; w + 2 * r],
+                vec![NO_READING; w + 2 * r],
+            ],
             sums: WindowSums {
                 acc: core::array::from_fn(|_| vec![0.0; w]),
                 jump: vec![0.0; w],
@@ -193,6 +204,7 @@ impl WindowSums {
         cz: &[f32],
         params: &SegmenterParams,
         [ox, oy, oz]: [&mut [f32]; 3],
+        none_z: f32,
     ) {
         let w = self.jump.len();
         for (j, &z) in self.jump.iter_mut().zip(cz) {
@@ -210,12 +222,13 @@ impl WindowSums {
             let m = mask(cz[x] > 0.0);
             ox[x] = keep(ax / an, m);
             oy[x] = keep(ay / an, m);
-            oz[x] = keep(az / an, m);
+            oz[x] = pick(az / an, none_z, m);
         }
     }
 
-    /// The means where the centre has a reading, zero elsewhere, into `(ox, oy, oz)`.
-    fn means(&self, cz: &[f32], ox: &mut [f32], oy: &mut [f32], oz: &mut [f32]) {
+    /// The means where the centre has a reading, elsewhere zero (z: `none_z`), into
+    /// `(ox, oy, oz)`.
+    fn means(&self, cz: &[f32], [ox, oy, oz]: [&mut [f32]; 3], none_z: f32) {
         let w = self.jump.len();
         let [sx, sy, sz, sn] = &self.acc;
         let (sx, sy, sz, sn, cz) = (&sx[..w], &sy[..w], &sz[..w], &sn[..w], &cz[..w]);
@@ -224,7 +237,7 @@ impl WindowSums {
             let m = mask(cz[x] > 0.0);
             ox[x] = keep(sx[x] / sn[x], m);
             oy[x] = keep(sy[x] / sn[x], m);
-            oz[x] = keep(sz[x] / sn[x], m);
+            oz[x] = pick(sz[x] / sn[x], none_z, m);
         }
     }
 }
@@ -267,11 +280,11 @@ pub(super) fn smooth_points(
             let tap = |d: usize| [&rx[d..], &ry[d..], &rz[d..]];
             if r == DEFAULT_SMOOTH_RADIUS_PX {
                 let taps = core::array::from_fn::<_, { 2 * DEFAULT_SMOOTH_RADIUS_PX + 1 }, _>(tap);
-                sums.window_means(taps, cz, params, [tx, ty, tz]);
+                sums.window_means(taps, cz, params, [tx, ty, tz], NO_READING);
             } else {
                 sums.start(cz, params);
                 sums.add_taps(2 * r + 1, tap, cz);
-                sums.means(cz, tx, ty, tz);
+                sums.means(cz, [tx, ty, tz], NO_READING);
             }
         },
     );
@@ -306,11 +319,11 @@ pub(super) fn smooth_points(
                 if r == DEFAULT_SMOOTH_RADIUS_PX && count == 2 * r + 1 {
                     let taps =
                         core::array::from_fn::<_, { 2 * DEFAULT_SMOOTH_RADIUS_PX + 1 }, _>(tap);
-                    sums.window_means(taps, cz, params, [px, py, pz]);
+                    sums.window_means(taps, cz, params, [px, py, pz], 0.0);
                 } else {
                     sums.start(cz, params);
                     sums.add_taps(count, tap, cz);
-                    sums.means(cz, px, py, pz);
+                    sums.means(cz, [px, py, pz], 0.0);
                 }
                 for (x, o) in o.iter_mut().enumerate() {
                     *o = [px[x], py[x], pz[x]];
@@ -441,7 +454,8 @@ pub(super) fn normals(
 }
 
 /// `sums` (x, y, z and count) plus the points of `taps` at column `x` whose depth is
-/// within `jump` of the centre depth `cz`, in tap order (the branch-free form of
+/// within `jump` of the centre depth `cz` (a tap without a reading has depth
+/// [`NO_READING`]), in tap order (the branch-free form of
 /// `WindowSums::add`; inlined so the sums stay in registers).
 #[inline(always)]
 fn sum_taps<const N: usize>(
@@ -449,16 +463,21 @@ fn sum_taps<const N: usize>(
     x: usize,
     cz: f32,
     jump: f32,
-    [mut ax, mut ay, mut az, mut an]: [f32; 4],
+    [mut ax, mut ay, mut az, an]: [f32; 4],
 ) -> [f32; 4] {
+    // The points taken, counted in integers: `an` plus it is exactly what adding 1.0 a
+    // point gives (small integers).
+    let mut taken = 0u32;
     for [qx, qy, qz] in taps {
-        let m = mask((qz[x] > 0.0) & ((qz[x] - cz).abs() <= jump));
+        // A tap without a reading is NaN ([`NO_READING`]): the test fails.
+        let m = mask((qz[x] - cz).abs() <= jump);
         ax += keep(qx[x], m);
         ay += keep(qy[x], m);
         az += keep(qz[x], m);
-        an += keep(1.0, m);
+        // `m` is all ones (−1 as an integer) for a point taken.
+        taken = taken.wrapping_sub(m);
     }
-    [ax, ay, az, an]
+    [ax, ay, az, an + taken as i32 as f32]
 }
 
 /// All ones if `on`, else zero: a lane mask for [`keep`] and [`pick`].
@@ -637,7 +656,7 @@ mod tests {
                 .map(|_| {
                     let v = rng.below(1000) as f32 / 1000.0;
                     if holes && rng.below(6) == 0 {
-                        0.0
+                        NO_READING
                     } else if holes {
                         0.5 + scale * v + 0.02 * (rng.below(3) as f32)
                     } else {
@@ -654,11 +673,11 @@ mod tests {
         sums.start(cz, &params);
         sums.add_taps(2 * r + 1, tap, cz);
         let [gx, gy, gz] = &mut general;
-        sums.means(cz, gx, gy, gz);
+        sums.means(cz, [gx, gy, gz], 0.0);
         let mut fused = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
         let taps = core::array::from_fn::<_, { 2 * DEFAULT_SMOOTH_RADIUS_PX + 1 }, _>(tap);
         let [fx, fy, fz] = &mut fused;
-        sums.window_means(taps, cz, &params, [fx, fy, fz]);
+        sums.window_means(taps, cz, &params, [fx, fy, fz], 0.0);
         let bits =
             |v: &[Vec<f32>; 3]| -> Vec<u32> { v.iter().flatten().map(|f| f.to_bits()).collect() };
         assert_eq!(bits(&fused), bits(&general));

@@ -34,6 +34,8 @@ pub(super) const HOLE: u8 = 1;
 const NONE: u32 = u32::MAX;
 /// Share of a hole's border that must be labelled for the hole to be filled.
 const ENCLOSED_SHARE: f32 = 0.8;
+/// Pixels a chunk of the scans that skip runs of pixels with nothing to do.
+const CHUNK_PX: usize = 16;
 
 /// Scratch of [`grow_segments`], reused across frames.
 #[derive(Debug, Default)]
@@ -175,53 +177,82 @@ fn link_row(
     links: &mut [u8],
     parent: &mut [u32],
 ) {
+    let w = inp.w;
+    let object = &inp.object[y * w..(y + 1) * w];
+    // Cleared a row at a time (a fill per chunk costs a call each).
+    links.fill(0);
+    parent.fill(NONE);
+    for (c, ((links, parents), object)) in links
+        .chunks_mut(CHUNK_PX)
+        .zip(parent.chunks_mut(CHUNK_PX))
+        .zip(object.chunks(CHUNK_PX))
+        .enumerate()
+    {
+        let x0 = c * CHUNK_PX;
+        // A chunk without object pixels has no grown one (a test without branches, which
+        // the compiler vectorises).
+        if !object.iter().fold(false, |any, &o| any | o) {
+            continue;
+        }
+        for (k, (link, parent)) in links.iter_mut().zip(parents.iter_mut()).enumerate() {
+            link_pixel(inp, params, cos_normal, (x0 + k, y), link, parent);
+        }
+    }
+}
+
+/// Rule 1's flags of pixel `(x, y)` into `link` and its union-find parent into `parent`
+/// (see [`link_row`]); both start cleared.
+fn link_pixel(
+    inp: &GrowInput<'_>,
+    params: &SegmenterParams,
+    cos_normal: f32,
+    (x, y): (usize, usize),
+    link: &mut u8,
+    parent: &mut u32,
+) {
     let (w, h) = (inp.w, inp.h);
     let blocked = |i: usize| inp.crease[i] & CREASE_BLOCK != 0;
     let grown = |i: usize| inp.object[i] && !blocked(i);
     let on_crease = |i: usize| inp.object[i] && blocked(i);
-    for (x, (link, parent)) in links.iter_mut().zip(parent.iter_mut()).enumerate() {
-        let i = y * w + x;
-        *link = 0;
-        *parent = NONE;
-        if !grown(i) {
+    let i = y * w + x;
+    if !grown(i) {
+        return;
+    }
+    *parent = i as u32;
+    *link = Links::GROWN;
+    let (p, np) = (inp.pts[i], inp.nrm[i]);
+    let jump = params.depth_jump_at_m(p[2]);
+    for (j, join, step) in [
+        (
+            (x + 1 < w).then_some(i + 1),
+            Links::JOIN_RIGHT,
+            Links::STEP_RIGHT,
+        ),
+        (
+            (y + 1 < h).then_some(i + w),
+            Links::JOIN_DOWN,
+            Links::STEP_DOWN,
+        ),
+    ] {
+        // Both grown object pixels: join them, or flag a step.
+        let Some(j) = j.filter(|&j| grown(j)) else {
             continue;
+        };
+        let nq = inp.nrm[j];
+        let joins = continuous_within(p, np, inp.pts[j], jump)
+            && (np == [0.0; 3] || nq == [0.0; 3] || dot(np, nq) >= cos_normal);
+        if joins {
+            *link |= join;
+        } else if !convex(inp.pts, inp.nrm, i, j) {
+            *link |= step;
         }
-        *parent = i as u32;
-        *link = Links::GROWN;
-        let (p, np) = (inp.pts[i], inp.nrm[i]);
-        let jump = params.depth_jump_at_m(p[2]);
-        for (j, join, step) in [
-            (
-                (x + 1 < w).then_some(i + 1),
-                Links::JOIN_RIGHT,
-                Links::STEP_RIGHT,
-            ),
-            (
-                (y + 1 < h).then_some(i + w),
-                Links::JOIN_DOWN,
-                Links::STEP_DOWN,
-            ),
-        ] {
-            // Both grown object pixels: join them, or flag a step.
-            let Some(j) = j.filter(|&j| grown(j)) else {
-                continue;
-            };
-            let nq = inp.nrm[j];
-            let joins = continuous_within(p, np, inp.pts[j], jump)
-                && (np == [0.0; 3] || nq == [0.0; 3] || dot(np, nq) >= cos_normal);
-            if joins {
-                *link |= join;
-            } else if !convex(inp.pts, inp.nrm, i, j) {
-                *link |= step;
-            }
-        }
-        if (x > 0 && on_crease(i - 1))
-            || (x + 1 < w && on_crease(i + 1))
-            || (y > 0 && on_crease(i - w))
-            || (y + 1 < h && on_crease(i + w))
-        {
-            *link |= Links::SEED;
-        }
+    }
+    if (x > 0 && on_crease(i - 1))
+        || (x + 1 < w && on_crease(i + 1))
+        || (y > 0 && on_crease(i - w))
+        || (y + 1 < h && on_crease(i + w))
+    {
+        *link |= Links::SEED;
     }
 }
 
@@ -286,34 +317,55 @@ pub(super) fn grow_segments(
             *st = u8::from(f != 0);
         }
     });
-    for (i, &link) in links.iter().enumerate().take(rows.end).skip(rows.start) {
-        if link & Links::JOIN_RIGHT != 0 {
-            union(&mut s.parent, i as u32, i as u32 + 1);
-        }
-        if link & Links::JOIN_DOWN != 0 {
-            union(&mut s.parent, i as u32, (i + w) as u32);
-        }
-    }
-    // Dense ids in the order of the roots; the seeds of rule 2 in row-major order.
-    s.id.resize(n, NONE);
-    s.id[..rows.start].fill(NONE);
-    s.id[rows.end..].fill(NONE);
-    s.queue.clear();
-    let mut count = 0u32;
-    for (i, &link) in links.iter().enumerate().take(rows.end).skip(rows.start) {
-        if link & Links::GROWN == 0 {
-            s.id[i] = NONE;
+    // The serial passes skip chunks of pixels whose flags `any` (the union of them) shows
+    // nothing to do there.
+    let chunks = || {
+        rows.clone().step_by(CHUNK_PX).map(|i0| {
+            let i1 = (i0 + CHUNK_PX).min(rows.end);
+            (i0..i1, links[i0..i1].iter().fold(0, |any, &l| any | l))
+        })
+    };
+    for (chunk, any) in chunks() {
+        if any & (Links::JOIN_RIGHT | Links::JOIN_DOWN) == 0 {
             continue;
         }
-        let r = find(&mut s.parent, i as u32) as usize;
-        s.id[i] = if r == i {
-            count += 1;
-            count - 1
-        } else {
-            s.id[r]
-        };
-        if link & Links::SEED != 0 {
-            s.queue.push(i as u32);
+        for i in chunk {
+            let link = links[i];
+            if link & Links::JOIN_RIGHT != 0 {
+                union(&mut s.parent, i as u32, i as u32 + 1);
+            }
+            if link & Links::JOIN_DOWN != 0 {
+                union(&mut s.parent, i as u32, (i + w) as u32);
+            }
+        }
+    }
+    // Dense ids in the order of the roots; the seeds of rule 2 in row-major order. A
+    // pixel's parent is an earlier pixel of its tree (`union` and `find` only ever point
+    // to a smaller index), whose id is already that of the root.
+    s.id.resize(n, NONE);
+    s.id.fill(NONE);
+    s.queue.clear();
+    let mut count = 0u32;
+    for (chunk, any) in chunks() {
+        if any & Links::GROWN == 0 {
+            continue;
+        }
+        for i in chunk {
+            let link = links[i];
+            if link & Links::GROWN == 0 {
+                s.id[i] = NONE;
+                continue;
+            }
+            let up = s.parent[i] as usize;
+            s.id[i] = if up == i {
+                count += 1;
+                count - 1
+            } else {
+                s.id[up]
+            };
+            if link & Links::SEED != 0 {
+                s.queue.push(i as u32);
+            }
         }
     }
 
@@ -343,30 +395,40 @@ pub(super) fn grow_segments(
     s.pairs.clear();
     let mut sum = RootSum::default();
     for y in y0..y1 {
-        for x in 0..w {
-            let i = y * w + x;
-            let a = s.id[i];
-            if a == NONE {
+        for x0 in (0..w).step_by(CHUNK_PX) {
+            let xs = x0..(x0 + CHUNK_PX).min(w);
+            // A chunk of pixels in no segment adds nothing.
+            if s.id[y * w + xs.start..y * w + xs.end]
+                .iter()
+                .fold(true, |all, &d| all & (d == NONE))
+            {
                 continue;
             }
-            sum.add(&mut s.area, a, inp.px_area_m2[i]);
-            if s.first[a as usize] == NONE {
-                s.first[a as usize] = i as u32;
-            }
-            for j in [(x + 1 < w).then_some(i + 1), (y + 1 < h).then_some(i + w)]
-                .into_iter()
-                .flatten()
-            {
-                let b = s.id[j];
-                if b == NONE || b == a {
+            for x in xs {
+                let i = y * w + x;
+                let a = s.id[i];
+                if a == NONE {
                     continue;
                 }
-                let (pi, pj) = (inp.pts[i], inp.pts[j]);
-                let jump = params.depth_jump_at_m(pi[2]);
-                if pi[2] > 0.0 && pj[2] > 0.0 && (pi[2] - pj[2]).abs() > jump {
-                    continue;
+                sum.add(&mut s.area, a, inp.px_area_m2[i]);
+                if s.first[a as usize] == NONE {
+                    s.first[a as usize] = i as u32;
                 }
-                s.pairs.push((a, b));
+                for j in [(x + 1 < w).then_some(i + 1), (y + 1 < h).then_some(i + w)]
+                    .into_iter()
+                    .flatten()
+                {
+                    let b = s.id[j];
+                    if b == NONE || b == a {
+                        continue;
+                    }
+                    let (pi, pj) = (inp.pts[i], inp.pts[j]);
+                    let jump = params.depth_jump_at_m(pi[2]);
+                    if pi[2] > 0.0 && pj[2] > 0.0 && (pi[2] - pj[2]).abs() > jump {
+                        continue;
+                    }
+                    s.pairs.push((a, b));
+                }
             }
         }
     }
@@ -466,12 +528,19 @@ pub(super) fn grow_segments(
         .par_chunks_mut(w)
         .zip(id.par_chunks(w))
         .for_each(|(labels, id)| {
-            for (l, &d) in labels.iter_mut().zip(id) {
-                *l = if d == NONE {
-                    0
-                } else {
-                    label[d as usize] as u16
-                };
+            labels.fill(0);
+            for (labels, id) in labels.chunks_mut(CHUNK_PX).zip(id.chunks(CHUNK_PX)) {
+                // Most chunks are in no segment at all: one test without branches.
+                if id.iter().fold(true, |all, &d| all & (d == NONE)) {
+                    continue;
+                }
+                for (l, &d) in labels.iter_mut().zip(id) {
+                    *l = if d == NONE {
+                        0
+                    } else {
+                        label[d as usize] as u16
+                    };
+                }
             }
         });
 
@@ -490,65 +559,85 @@ fn fill_holes(
     let (w, h) = (inp.w, inp.h);
     hole.fill(0);
     // Pixels without depth are in no segment (`id` is NONE there): from here on `id` marks
-    // the visited ones.
-    let visited = 0;
-    for start in 0..w * h {
-        if inp.pts[start][2] > 0.0 || s.id[start] != NONE {
+    // the visited ones (see `fill_hole_at`).
+    for (c, chunk) in inp.pts[..w * h].chunks(CHUNK_PX).enumerate() {
+        // Most chunks have a depth at every pixel: one test without branches skips them.
+        if chunk.iter().fold(true, |all, p| all & (p[2] > 0.0)) {
             continue;
         }
-        s.queue.clear();
-        s.queue.push(start as u32);
-        s.id[start] = visited;
-        s.tally.clear();
-        let (mut border, mut labelled, mut border_area) = (0u32, 0u32, 0.0f32);
-        let mut head = 0;
-        while let Some(&i) = s.queue.get(head) {
-            head += 1;
-            let i = i as usize;
-            let (x, y) = (i % w, i / w);
-            border += u32::from(x == 0) + u32::from(x + 1 == w);
-            border += u32::from(y == 0) + u32::from(y + 1 == h);
-            for j in neighbours(i, w, h) {
-                if inp.pts[j][2] <= 0.0 {
-                    if s.id[j] == NONE {
-                        s.id[j] = visited;
-                        s.queue.push(j as u32);
-                    }
-                    continue;
+        for start in c * CHUNK_PX..c * CHUNK_PX + chunk.len() {
+            fill_hole_at(inp, params, s, start, labels, hole);
+        }
+    }
+}
+
+/// Rule 5 for the region of pixels without depth at `start`, unless `start` has a depth
+/// or is visited (part of a region done before).
+fn fill_hole_at(
+    inp: &GrowInput<'_>,
+    params: &SegmenterParams,
+    s: &mut GrowScratch,
+    start: usize,
+    labels: &mut [u16],
+    hole: &mut [u8],
+) {
+    let (w, h) = (inp.w, inp.h);
+    let visited = 0;
+    if inp.pts[start][2] > 0.0 || s.id[start] != NONE {
+        return;
+    }
+    s.queue.clear();
+    s.queue.push(start as u32);
+    s.id[start] = visited;
+    s.tally.clear();
+    let (mut border, mut labelled, mut border_area) = (0u32, 0u32, 0.0f32);
+    let mut head = 0;
+    while let Some(&i) = s.queue.get(head) {
+        head += 1;
+        let i = i as usize;
+        let (x, y) = (i % w, i / w);
+        border += u32::from(x == 0) + u32::from(x + 1 == w);
+        border += u32::from(y == 0) + u32::from(y + 1 == h);
+        for j in neighbours(i, w, h) {
+            if inp.pts[j][2] <= 0.0 {
+                if s.id[j] == NONE {
+                    s.id[j] = visited;
+                    s.queue.push(j as u32);
                 }
-                border += 1;
-                let l = labels[j];
-                if l != 0 {
-                    labelled += 1;
-                    border_area += inp.px_area_m2[j];
-                    match s.tally.iter_mut().find(|(t, _)| *t == l) {
-                        Some((_, c)) => *c += 1,
-                        None => s.tally.push((l, 1)),
-                    }
+                continue;
+            }
+            border += 1;
+            let l = labels[j];
+            if l != 0 {
+                labelled += 1;
+                border_area += inp.px_area_m2[j];
+                match s.tally.iter_mut().find(|(t, _)| *t == l) {
+                    Some((_, c)) => *c += 1,
+                    None => s.tally.push((l, 1)),
                 }
             }
         }
-        if border == 0 || (labelled as f32) < ENCLOSED_SHARE * border as f32 {
-            continue;
-        }
-        let Some(&(fill, _)) = s
-            .tally
-            .iter()
-            .max_by(|a, b| a.1.cmp(&b.1).then(b.0.cmp(&a.0)))
-        else {
-            continue;
-        };
-        // Footprint of a hole pixel: that of its labelled border pixels on average.
-        let area = s.queue.len() as f32 * border_area / labelled as f32;
-        let flag = if area >= params.hole_min_area_m2 {
-            HOLE
-        } else {
-            0
-        };
-        for &i in &s.queue {
-            labels[i as usize] = fill;
-            hole[i as usize] = flag;
-        }
+    }
+    if border == 0 || (labelled as f32) < ENCLOSED_SHARE * border as f32 {
+        return;
+    }
+    let Some(&(fill, _)) = s
+        .tally
+        .iter()
+        .max_by(|a, b| a.1.cmp(&b.1).then(b.0.cmp(&a.0)))
+    else {
+        return;
+    };
+    // Footprint of a hole pixel: that of its labelled border pixels on average.
+    let area = s.queue.len() as f32 * border_area / labelled as f32;
+    let flag = if area >= params.hole_min_area_m2 {
+        HOLE
+    } else {
+        0
+    };
+    for &i in &s.queue {
+        labels[i as usize] = fill;
+        hole[i as usize] = flag;
     }
 }
 

@@ -129,21 +129,23 @@ pub(super) fn heatmap(
     let mut run: Option<(usize, (f64, u32))> = None;
     // The least depth of a segment pixel (a filled hole's mean depth is no less).
     let mut z_min = f32::INFINITY;
-    for i in inner.pixels(w) {
-        let (l, p) = (labels[i], &inp.pts[i]);
-        if l == 0 || p[2] <= 0.0 {
-            continue;
-        }
-        z_min = z_min.min(p[2]);
-        let l = usize::from(l);
-        match &mut run {
-            Some((rl, m)) if *rl == l => *m = (m.0 + f64::from(p[2]), m.1 + 1),
-            _ => {
-                if let Some((rl, m)) = run {
-                    s.mean_z[rl] = m;
+    for (y, xs) in labelled_runs(w, inner, labels) {
+        let run_px = y * w + xs.start..y * w + xs.end;
+        for (&l, p) in labels[run_px.clone()].iter().zip(&inp.pts[run_px]) {
+            if l == 0 || p[2] <= 0.0 {
+                continue;
+            }
+            z_min = z_min.min(p[2]);
+            let l = usize::from(l);
+            match &mut run {
+                Some((rl, m)) if *rl == l => *m = (m.0 + f64::from(p[2]), m.1 + 1),
+                _ => {
+                    if let Some((rl, m)) = run {
+                        s.mean_z[rl] = m;
+                    }
+                    let m = s.mean_z[l];
+                    run = Some((l, (m.0 + f64::from(p[2]), m.1 + 1)));
                 }
-                let m = s.mean_z[l];
-                run = Some((l, (m.0 + f64::from(p[2]), m.1 + 1)));
             }
         }
     }
@@ -163,7 +165,7 @@ pub(super) fn heatmap(
     };
 
     // 1a. Contacts and their gaps (and 1b. creases, steps and holes).
-    for (y, xs) in inner.rows() {
+    for (y, xs) in labelled_runs(w, inner, labels) {
         for x in xs {
             let i = y * w + x;
             let a = labels[i];
@@ -324,6 +326,31 @@ pub(super) fn heatmap(
         });
 }
 
+/// Pixels a run of [`labelled_runs`].
+const RUN_PX: usize = 16;
+
+/// The rows of `win` cut into runs of up to [`RUN_PX`] pixels, `(y, xs)` in row-major
+/// order, leaving out the runs without a labelled pixel (one test without branches a run):
+/// what a pass over the segment pixels of the window visits.
+fn labelled_runs(
+    w: usize,
+    win: Window,
+    labels: &[u16],
+) -> impl Iterator<Item = (usize, core::ops::Range<usize>)> {
+    win.rows()
+        .flat_map(|(y, xs)| {
+            let end = xs.end;
+            xs.step_by(RUN_PX)
+                .map(move |x0| (y, x0..(x0 + RUN_PX).min(end)))
+        })
+        .filter(move |(y, xs)| {
+            labels[y * w + xs.start..y * w + xs.end]
+                .iter()
+                .fold(0, |any, &l| any | l)
+                != 0
+        })
+}
+
 /// The smallest window holding every labelled pixel; `None` if there is none.
 fn bounding_box(w: usize, labels: &[u16]) -> Option<Window> {
     let rows = |(_, row): &(usize, &[u16])| row.iter().any(|&l| l != 0);
@@ -354,6 +381,7 @@ pub(super) struct Moments {
     /// Sum of the points' depths, metres.
     depth_sum_m: f64,
     sum: [f64; 3],
+    /// Sums of the products of coordinates `a <= b` at `[a][b]` (the rest stays zero).
     outer: [[f64; 3]; 3],
 }
 
@@ -362,7 +390,8 @@ impl Moments {
         self.count += 1.0;
         for (a, pa) in p.iter().enumerate() {
             self.sum[a] += pa;
-            for (b, pb) in p.iter().enumerate() {
+            // The upper triangle: the lower one is the same sums (`pa · pb = pb · pa`).
+            for (b, pb) in p.iter().enumerate().skip(a) {
                 self.outer[a][b] += pa * pb;
             }
         }
@@ -376,8 +405,9 @@ impl Moments {
             return None;
         }
         let mean = self.sum.map(|v| v / self.count);
-        let cov =
-            nalgebra::Matrix3::from_fn(|a, b| self.outer[a][b] / self.count - mean[a] * mean[b]);
+        let cov = nalgebra::Matrix3::from_fn(|a, b| {
+            self.outer[a.min(b)][a.max(b)] / self.count - mean[a] * mean[b]
+        });
         let eig = cov.symmetric_eigen();
         let mut order = [0usize, 1, 2];
         order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
@@ -415,18 +445,21 @@ fn pack_cuts(
         let h = p[0] * n[0] + p[1] * n[1] + p[2] * n[2];
         [p[0] - h * n[0], p[1] - h * n[1], p[2] - h * n[2]]
     };
-    for i in inner.pixels(inp.w) {
-        let (l, p, mk, d2_px) = (inp.labels[i], inp.pts[i], mark[i], d_background[i]);
-        if l != 0
-            && let Some(m) = moments.get_mut(usize::from(l))
-        {
-            // Sources in the interior: a hole or contact at the rim divides nothing.
-            if mk & SOURCE != 0 && d2_px.sqrt() * p[2].max(0.0) * inp.inv_focal > params.band_m {
-                m.sources += 1;
-            }
-            if p[2] > 0.0 {
-                m.add(flatten(p));
-                m.depth_sum_m += f64::from(p[2]);
+    for (y, xs) in labelled_runs(inp.w, inner, inp.labels) {
+        for i in y * inp.w + xs.start..y * inp.w + xs.end {
+            let (l, p, mk, d2_px) = (inp.labels[i], inp.pts[i], mark[i], d_background[i]);
+            if l != 0
+                && let Some(m) = moments.get_mut(usize::from(l))
+            {
+                // Sources in the interior: a hole or contact at the rim divides nothing.
+                if mk & SOURCE != 0 && d2_px.sqrt() * p[2].max(0.0) * inp.inv_focal > params.band_m
+                {
+                    m.sources += 1;
+                }
+                if p[2] > 0.0 {
+                    m.add(flatten(p));
+                    m.depth_sum_m += f64::from(p[2]);
+                }
             }
         }
     }
@@ -465,34 +498,39 @@ fn pack_cuts(
     if cuts.iter().all(Option::is_none) {
         return;
     }
-    for i in inner.pixels(inp.w) {
-        let (l, p) = (inp.labels[i], inp.pts[i]);
-        if l == 0 || p[2] <= 0.0 {
-            continue;
-        }
-        let Some(Cut {
-            centre,
-            axes,
-            cells,
-        }) = cuts.get(usize::from(l)).and_then(Option::as_ref)
-        else {
-            continue;
-        };
-        // A cut is one pixel wide: within half a pixel of a cut position.
-        let half_px_m = 0.5 * f64::from(p[2] * inp.inv_focal);
-        let q = flatten(p);
-        let d = [0, 1, 2].map(|a| q[a] - centre[a]);
-        let on_cut = axes.iter().zip(*cells).any(|((axis, len_m), n)| {
-            let along = d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2];
-            // Position in cells from the start of the axis.
-            let pos = (along / len_m + 0.5) * n as f64;
-            let nearest = pos.round();
-            nearest >= 1.0
-                && nearest <= (n - 1) as f64
-                && ((pos - nearest) * len_m / n as f64).abs() <= half_px_m
-        });
-        if on_cut {
-            mark[i] |= SOURCE;
+    for (y, xs) in labelled_runs(inp.w, inner, inp.labels) {
+        let run_px = y * inp.w + xs.start..y * inp.w + xs.end;
+        for (i, (&l, &p)) in run_px
+            .clone()
+            .zip(inp.labels[run_px.clone()].iter().zip(&inp.pts[run_px]))
+        {
+            if l == 0 || p[2] <= 0.0 {
+                continue;
+            }
+            let Some(Cut {
+                centre,
+                axes,
+                cells,
+            }) = cuts.get(usize::from(l)).and_then(Option::as_ref)
+            else {
+                continue;
+            };
+            // A cut is one pixel wide: within half a pixel of a cut position.
+            let half_px_m = 0.5 * f64::from(p[2] * inp.inv_focal);
+            let q = flatten(p);
+            let d = [0, 1, 2].map(|a| q[a] - centre[a]);
+            let on_cut = axes.iter().zip(*cells).any(|((axis, len_m), n)| {
+                let along = d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2];
+                // Position in cells from the start of the axis.
+                let pos = (along / len_m + 0.5) * n as f64;
+                let nearest = pos.round();
+                nearest >= 1.0
+                    && nearest <= (n - 1) as f64
+                    && ((pos - nearest) * len_m / n as f64).abs() <= half_px_m
+            });
+            if on_cut {
+                mark[i] |= SOURCE;
+            }
         }
     }
 }

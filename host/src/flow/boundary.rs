@@ -140,7 +140,7 @@ impl<'a> Rows<'a> {
         } else {
             s[0] = larger(s[0], larger(gap(f, left), gap(f, right)));
         }
-        larger(s[0], s[1]) > SPREAD_PX
+        examined(s)
     }
 
     /// The flow pixel `(x, y)` takes, if not its own: whichever candidate more than
@@ -163,6 +163,14 @@ impl<'a> Rows<'a> {
         }
         candidates.get(best).copied()
     }
+}
+
+/// Whether a pixel whose candidates differ from its flow by `spread` (per component, as
+/// [`select_row`] computes it) is examined: more than [`SPREAD_PX`], or NaN. One test for
+/// every pass, so that the later passes examine what a pass over every pixel would.
+fn examined(spread: [f32; 2]) -> bool {
+    let s = larger(spread[0], spread[1]);
+    s > SPREAD_PX || s.is_nan()
 }
 
 /// The larger difference of two flows' components.
@@ -224,7 +232,7 @@ fn select_row(images: Pair<'_>, rows: &Rows<'_>, y: usize, changes: &mut Vec<(us
                 continue;
             }
             for (k, s) in group.chunks_exact(2).enumerate() {
-                if larger(s[0], s[1]) <= SPREAD_PX {
+                if !examined([s[0], s[1]]) {
                     continue;
                 }
                 let x = start + j * GROUP + k;
@@ -489,8 +497,14 @@ mod tests {
         assert_eq!(same, ramp);
     }
 
+    /// A flow field's bits (NaN compares equal to itself).
+    fn bits(flow: &[[f32; 2]]) -> Vec<[u32; 2]> {
+        flow.iter().map(|f| f.map(f32::to_bits)).collect()
+    }
+
     /// Passes after the first look only next to the previous pass's changes; the result
-    /// must be that of passes over every pixel.
+    /// must be that of passes over every pixel, also where a candidate's flow is NaN (at a
+    /// row's ends, a NaN candidate makes the spread NaN, which is examined).
     #[test]
     fn later_passes_match_passes_over_every_pixel() {
         let (w, h) = (37usize, 23usize);
@@ -505,12 +519,21 @@ mod tests {
             i1: &i1,
         };
         // Blocks of flows with steps of several pixels between them.
-        let start: Vec<[f32; 2]> = (0..w * h)
+        let mut start: Vec<[f32; 2]> = (0..w * h)
             .map(|i| {
                 let (x, y) = (i % w, i / w);
                 [(x / 5 % 3) as f32 * 2.5, ((x + y) / 7 % 2) as f32 * -3.0]
             })
             .collect();
+        // NaN flows at some rows' ends.
+        for y in 0..h {
+            if y % 3 == 1 {
+                start[y * w + w - 1][1] = f32::NAN;
+            }
+            if y % 5 == 2 {
+                start[y * w][1] = f32::NAN;
+            }
+        }
         for (passes, reach) in [(2, 4), (3, 2), (4, 1), (3, 40)] {
             let mut every = start.clone();
             for _ in 0..passes {
@@ -527,10 +550,15 @@ mod tests {
             let mut sparse = start.clone();
             select_at_boundaries(images, &mut sparse, passes, reach, &mut Vec::new());
             assert_ne!(
-                every, start,
+                bits(&every),
+                bits(&start),
                 "passes {passes}, reach {reach}: nothing changed"
             );
-            assert_eq!(sparse, every, "passes {passes}, reach {reach}");
+            assert_eq!(
+                bits(&sparse),
+                bits(&every),
+                "passes {passes}, reach {reach}"
+            );
         }
     }
 

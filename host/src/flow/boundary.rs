@@ -186,8 +186,6 @@ const BLOCK: usize = 64;
 fn select_row(images: Pair<'_>, rows: &Rows<'_>, y: usize, changes: &mut Vec<(usize, [f32; 2])>) {
     let (here, above, below, reach_px) = (rows.here, rows.above, rows.below, rows.reach);
     let w = here.len();
-    let left = |x: usize| here[x.saturating_sub(reach_px)];
-    let right = |x: usize| here[x.saturating_add(reach_px).min(w - 1)];
     let (flat, up, down) = (
         here.as_flattened(),
         above.as_flattened(),
@@ -223,8 +221,8 @@ fn select_row(images: Pair<'_>, rows: &Rows<'_>, y: usize, changes: &mut Vec<(us
             }
         }
         for k in (0..lo).chain(hi.max(lo)..n) {
-            let (x, f) = (start + k, here[start + k]);
-            spread[2 * k] = larger(spread[2 * k], larger(gap(f, left(x)), gap(f, right(x))));
+            let (f, (l, r)) = (here[start + k], rows.sides(start + k));
+            spread[2 * k] = larger(spread[2 * k], larger(gap(f, here[l]), gap(f, here[r])));
         }
         // Groups of `GROUP` pixels none of which passes are skipped at once.
         for (j, group) in spread[..m].chunks(2 * GROUP).enumerate() {

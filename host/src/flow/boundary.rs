@@ -36,11 +36,17 @@ pub(crate) struct Pair<'a> {
     pub i1: &'a [f32],
 }
 
-/// Each row's changes of a pass, `(x, new flow)`, for this pass and the one before (rows
-/// `0..h` and `h..2h`, their roles swapped every pass): scratch of
-/// [`select_at_boundaries`], kept by the caller between calls (empty lists or garbage
-/// between calls).
-pub(crate) type RowChanges = Vec<Vec<(usize, [f32; 2])>>;
+/// Scratch of [`select_at_boundaries`], kept by the caller between calls (empty or
+/// garbage between calls).
+#[derive(Debug, Default)]
+pub(crate) struct RowChanges {
+    /// Each row's changes of a pass, `(x, new flow)`, for this pass and the one before
+    /// (rows `0..h` and `h..2h`, their roles swapped every pass).
+    rows: Vec<Vec<(usize, [f32; 2])>>,
+    /// One bit per pixel, `w.div_ceil(64)` words per row: the pixels a pass after the
+    /// first examines in that row ([`reselect_row`]).
+    marks: Vec<u64>,
+}
 
 /// Runs `passes` passes of the selection over `flow` (`w x h`, row-major) with candidates
 /// `reach_px` pixels away; `changes` is scratch.
@@ -64,21 +70,30 @@ pub(crate) fn select_at_boundaries(
     // Few pixels change: each row lists its changes while every row reads the pass's
     // input, then they are written in. No copy of the field (2.4 MB at 640x480: its pages
     // faulted in by a one-shot `riseg flow`, and copied twice per estimate).
-    if changes.len() < 2 * h {
-        changes.resize_with(2 * h, Vec::new);
+    let RowChanges { rows: lists, marks } = changes;
+    if lists.len() < 2 * h {
+        lists.resize_with(2 * h, Vec::new);
     }
-    let (mut now, mut before) = changes[..2 * h].split_at_mut(h);
+    let words = w.div_ceil(64);
+    if marks.len() < words * h {
+        marks.resize(words * h, 0);
+    }
+    let marks = &mut marks[..words * h];
+    let (mut now, mut before) = lists[..2 * h].split_at_mut(h);
     for pass in 0..passes {
         let src = &*flow;
         let earlier = (pass > 0).then_some(&*before);
-        now.par_iter_mut().enumerate().for_each(|(y, row)| {
-            row.clear();
-            let rows = Rows::new(images, src, y, reach_px);
-            match earlier {
-                None => select_row(images, &rows, y, row),
-                Some(earlier) => reselect_row(images, &rows, y, earlier, row),
-            }
-        });
+        now.par_iter_mut()
+            .zip(marks.par_chunks_mut(words))
+            .enumerate()
+            .for_each(|(y, (row, marked))| {
+                row.clear();
+                let rows = Rows::new(images, src, y, reach_px);
+                match earlier {
+                    None => select_row(images, &rows, y, row),
+                    Some(earlier) => reselect_row(images, &rows, y, earlier, marked, row),
+                }
+            });
         for (y, row) in now.iter().enumerate() {
             for &(x, f) in row {
                 if let Some(v) = flow.get_mut(y * w + x) {
@@ -244,12 +259,13 @@ fn select_row(images: Pair<'_>, rows: &Rows<'_>, y: usize, changes: &mut Vec<(us
 
 /// Row `y` of a pass after the first, over `rows`: as [`select_row`], but only at the
 /// pixels whose own flow or a candidate changed in the previous pass (`earlier`, its
-/// changes per row).
+/// changes per row). `marked` is scratch of one bit per pixel of the row.
 fn reselect_row(
     images: Pair<'_>,
     rows: &Rows<'_>,
     y: usize,
     earlier: &[Vec<(usize, [f32; 2])>],
+    marked: &mut [u64],
     changes: &mut Vec<(usize, [f32; 2])>,
 ) {
     let (w, h, reach) = (images.w, images.h, rows.reach);
@@ -261,7 +277,7 @@ fn reselect_row(
     // The pixels that read a changed flow: at its own place, above or below it, and
     // those whose left or right candidate it is (at the row's ends, all whose clamped
     // candidate falls on it); one bit each, so that they are visited once, in order.
-    let mut marked = vec![0u64; w.div_ceil(64)];
+    marked.fill(0);
     let mut mark = |x: usize| {
         if let Some(word) = marked.get_mut(x / 64) {
             *word |= 1 << (x % 64);
@@ -481,7 +497,7 @@ mod tests {
             sum / n as f32
         };
         let mut flow = ramp.clone();
-        select_at_boundaries(images, &mut flow, 2, 4, &mut Vec::new());
+        select_at_boundaries(images, &mut flow, 2, 4, &mut RowChanges::default());
         let (before, after) = (band_epe(&ramp), band_epe(&flow));
         eprintln!("EPE within 5 px of the boundary: ramp {before:.3}, selected {after:.3} px");
         // Measured: 1.200 -> 0.543 px (the pixels whose window straddles the boundary stay off).
@@ -489,7 +505,7 @@ mod tests {
         assert!(after < 0.6 * before, "{after} vs {before}");
         // No pass, or no reach, changes nothing.
         let mut same = ramp.clone();
-        let mut changes = Vec::new();
+        let mut changes = RowChanges::default();
         select_at_boundaries(images, &mut same, 0, 4, &mut changes);
         select_at_boundaries(images, &mut same, 2, 0, &mut changes);
         assert_eq!(same, ramp);
@@ -546,7 +562,13 @@ mod tests {
                 }
             }
             let mut sparse = start.clone();
-            select_at_boundaries(images, &mut sparse, passes, reach, &mut Vec::new());
+            select_at_boundaries(
+                images,
+                &mut sparse,
+                passes,
+                reach,
+                &mut RowChanges::default(),
+            );
             assert_ne!(
                 bits(&every),
                 bits(&start),
@@ -571,7 +593,10 @@ mod tests {
             i1: &i0,
         };
         let mut flow = vec![[1.5, -2.0]; w * h];
-        let mut changes = vec![vec![(0, [9.0; 2])]; 7];
+        let mut changes = RowChanges {
+            rows: vec![vec![(0, [9.0; 2])]; 7],
+            marks: vec![!0; 2],
+        };
         select_at_boundaries(images, &mut flow, 3, 1000, &mut changes);
         assert!(flow.iter().all(|f| *f == [1.5, -2.0]));
         // A flow of the wrong length is left alone; a NaN flow does not panic.

@@ -516,16 +516,58 @@ mod tests {
         flow.iter().map(|f| f.map(f32::to_bits)).collect()
     }
 
+    /// Two textured images, `w x h`, the second the first moved by two pixels.
+    fn textured(w: usize, h: usize) -> (Vec<f32>, Vec<f32>) {
+        let i0: Vec<f32> = (0..w * h)
+            .map(|i| (i * 7919 % 251) as f32 + 0.5 * (i % w) as f32)
+            .collect();
+        let i1 = (0..w * h).map(|i| i0[(i + 2) % (w * h)]).collect();
+        (i0, i1)
+    }
+
+    /// `passes` passes of [`select_row`] over every pixel of `start`: what
+    /// [`select_at_boundaries`] must give.
+    fn over_every_pixel(
+        images: Pair<'_>,
+        start: &[[f32; 2]],
+        passes: usize,
+        reach: usize,
+    ) -> Vec<[f32; 2]> {
+        let mut every = start.to_vec();
+        for _ in 0..passes {
+            let mut changed = Vec::new();
+            for y in 0..images.h {
+                let mut row = Vec::new();
+                select_row(images, &Rows::new(images, &every, y, reach), y, &mut row);
+                changed.extend(row.into_iter().map(|(x, f)| (y * images.w + x, f)));
+            }
+            for (i, f) in changed {
+                every[i] = f;
+            }
+        }
+        every
+    }
+
+    /// [`select_at_boundaries`] over `start` with fresh scratch.
+    fn sparse(images: Pair<'_>, start: &[[f32; 2]], passes: usize, reach: usize) -> Vec<[f32; 2]> {
+        let mut sparse = start.to_vec();
+        select_at_boundaries(
+            images,
+            &mut sparse,
+            passes,
+            reach,
+            &mut RowChanges::default(),
+        );
+        sparse
+    }
+
     /// Passes after the first look only next to the previous pass's changes; the result
     /// must be that of passes over every pixel, also where a candidate's flow is NaN (at a
     /// row's ends, a NaN candidate makes the spread NaN, which is examined).
     #[test]
     fn later_passes_match_passes_over_every_pixel() {
         let (w, h) = (37usize, 23usize);
-        let i0: Vec<f32> = (0..w * h)
-            .map(|i| (i * 7919 % 251) as f32 + 0.5 * (i % w) as f32)
-            .collect();
-        let i1: Vec<f32> = (0..w * h).map(|i| i0[(i + 2) % (w * h)]).collect();
+        let (i0, i1) = textured(w, h);
         let images = Pair {
             w,
             h,
@@ -548,37 +590,57 @@ mod tests {
                 start[y * w][1] = f32::NAN;
             }
         }
+        // Whether some case's later passes changed anything (else a later pass that
+        // examined nothing would pass).
+        let mut later_changes = false;
         for (passes, reach) in [(2, 4), (3, 2), (4, 1), (3, 40)] {
-            let mut every = start.clone();
-            for _ in 0..passes {
-                let mut changed = Vec::new();
-                for y in 0..h {
-                    let mut row = Vec::new();
-                    select_row(images, &Rows::new(images, &every, y, reach), y, &mut row);
-                    changed.extend(row.into_iter().map(|(x, f)| (y * w + x, f)));
-                }
-                for (i, f) in changed {
-                    every[i] = f;
-                }
-            }
-            let mut sparse = start.clone();
-            select_at_boundaries(
-                images,
-                &mut sparse,
-                passes,
-                reach,
-                &mut RowChanges::default(),
-            );
+            let every = over_every_pixel(images, &start, passes, reach);
+            let once = over_every_pixel(images, &start, 1, reach);
             assert_ne!(
-                bits(&every),
+                bits(&once),
                 bits(&start),
                 "passes {passes}, reach {reach}: nothing changed"
             );
+            later_changes |= bits(&every) != bits(&once);
             assert_eq!(
-                bits(&sparse),
+                bits(&sparse(images, &start, passes, reach)),
                 bits(&every),
                 "passes {passes}, reach {reach}"
             );
+        }
+        assert!(later_changes, "no later pass changed anything");
+    }
+
+    /// As [`later_passes_match_passes_over_every_pixel`], on a single column and a single
+    /// row, where a flow of -2 px along the line (the images' motion) moves on by one
+    /// candidate every pass.
+    #[test]
+    fn later_passes_match_on_a_single_row_or_column() {
+        for (w, h) in [(1usize, 5usize), (5, 1)] {
+            let (i0, i1) = textured(w, h);
+            let images = Pair {
+                w,
+                h,
+                i0: &i0,
+                i1: &i1,
+            };
+            let along = usize::from(w == 1);
+            for (reach, at, passes) in [(1, 1, 2), (1, 1, 3), (2, 0, 2), (2, 0, 3)] {
+                let mut start = vec![[0.0f32; 2]; w * h];
+                start[at][along] = -2.0;
+                let every = over_every_pixel(images, &start, passes, reach);
+                let case = format!("{w}x{h}, passes {passes}, reach {reach}");
+                assert_ne!(
+                    bits(&every),
+                    bits(&over_every_pixel(images, &start, 1, reach)),
+                    "{case}: no later change"
+                );
+                assert_eq!(
+                    bits(&sparse(images, &start, passes, reach)),
+                    bits(&every),
+                    "{case}"
+                );
+            }
         }
     }
 

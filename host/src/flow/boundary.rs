@@ -105,24 +105,24 @@ pub(crate) fn select_at_boundaries(
     }
 }
 
-/// The rows of the flow one row's selection reads: its own and those `reach` above and
+/// The rows of the flow one row's selection reads: its own and those `reach_px` above and
 /// below (clamped to the image).
 struct Rows<'a> {
     here: &'a [[f32; 2]],
     above: &'a [[f32; 2]],
     below: &'a [[f32; 2]],
-    reach: usize,
+    reach_px: usize,
 }
 
 impl<'a> Rows<'a> {
-    fn new(images: Pair<'_>, src: &'a [[f32; 2]], y: usize, reach: usize) -> Self {
+    fn new(images: Pair<'_>, src: &'a [[f32; 2]], y: usize, reach_px: usize) -> Self {
         let (w, h) = (images.w, images.h);
         let row = |r: usize| &src[r * w..][..w];
         Self {
             here: row(y),
-            above: row(y.saturating_sub(reach)),
-            below: row(y.saturating_add(reach).min(h - 1)),
-            reach,
+            above: row(y.saturating_sub(reach_px)),
+            below: row(y.saturating_add(reach_px).min(h - 1)),
+            reach_px,
         }
     }
 
@@ -130,8 +130,8 @@ impl<'a> Rows<'a> {
     fn sides(&self, x: usize) -> (usize, usize) {
         let w = self.here.len();
         (
-            x.saturating_sub(self.reach),
-            x.saturating_add(self.reach).min(w - 1),
+            x.saturating_sub(self.reach_px),
+            x.saturating_add(self.reach_px).min(w - 1),
         )
     }
 
@@ -148,7 +148,7 @@ impl<'a> Rows<'a> {
         let (f, [left, right, up, down]) = (self.here[x], self.candidates(x));
         let mut s: [f32; 2] =
             core::array::from_fn(|c| larger((f[c] - up[c]).abs(), (f[c] - down[c]).abs()));
-        if x >= self.reach && x.saturating_add(self.reach) < w {
+        if x >= self.reach_px && x.saturating_add(self.reach_px) < w {
             for (c, s) in s.iter_mut().enumerate() {
                 *s = larger(*s, larger((f[c] - left[c]).abs(), (f[c] - right[c]).abs()));
             }
@@ -199,7 +199,7 @@ const BLOCK: usize = 64;
 /// Row `y` of one pass over `rows`: the pixels that change, as `(x, new flow)`, in
 /// `changes`.
 fn select_row(images: Pair<'_>, rows: &Rows<'_>, y: usize, changes: &mut Vec<(usize, [f32; 2])>) {
-    let (here, above, below, reach_px) = (rows.here, rows.above, rows.below, rows.reach);
+    let (here, above, below, reach_px) = (rows.here, rows.above, rows.below, rows.reach_px);
     let w = here.len();
     let (flat, up, down) = (
         here.as_flattened(),
@@ -268,8 +268,11 @@ fn reselect_row(
     marked: &mut [u64],
     changes: &mut Vec<(usize, [f32; 2])>,
 ) {
-    let (w, h, reach) = (images.w, images.h, rows.reach);
-    let (up, down) = (y.saturating_sub(reach), y.saturating_add(reach).min(h - 1));
+    let (w, h, reach_px) = (images.w, images.h, rows.reach_px);
+    let (up, down) = (
+        y.saturating_sub(reach_px),
+        y.saturating_add(reach_px).min(h - 1),
+    );
     let (own, above, below) = (&earlier[y], &earlier[up], &earlier[down]);
     if own.is_empty() && above.is_empty() && below.is_empty() {
         return;
@@ -289,13 +292,13 @@ fn reselect_row(
     for &(p, _) in own {
         mark(p);
         if p == 0 {
-            (0..=reach.min(w - 1)).for_each(&mut mark);
-        } else if let Some(x) = p.checked_add(reach).filter(|&x| x < w) {
+            (0..=reach_px.min(w - 1)).for_each(&mut mark);
+        } else if let Some(x) = p.checked_add(reach_px).filter(|&x| x < w) {
             mark(x);
         }
         if p == w - 1 {
-            ((w - 1).saturating_sub(reach)..w).for_each(&mut mark);
-        } else if let Some(x) = p.checked_sub(reach) {
+            ((w - 1).saturating_sub(reach_px)..w).for_each(&mut mark);
+        } else if let Some(x) = p.checked_sub(reach_px) {
             mark(x);
         }
     }

@@ -250,8 +250,11 @@ pub(crate) fn refine(
     // The flow and system planes of both colours share one buffer. At the pyramid levels
     // it comes from the flow pool: the full-resolution flow made after the last level
     // then takes it with its pages already faulted in (one-shot `riseg flow` MEDIUM, 640x480:
-    // 3136 -> 2653 page faults). Not at full resolution, where it is larger than a flow
-    // and would leave the pool as the estimate's flow.
+    // 3136 -> 2653 page faults), as long as it fits in the room of a flow (`w x h` of the
+    // full resolution). On very small images (64x48) the buffer with its guards is larger:
+    // it is allocated anew and kept in the pool, which costs memory only. Not at full
+    // resolution, where it is larger than a flow and would leave the pool as the estimate's
+    // flow.
     let front_len = 2 * sp.len(2) + 2 * sp.len(5);
     let (mut front_pairs, mut front_values) = (None, None);
     let front: &mut [f32] = match flows {

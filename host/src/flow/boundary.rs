@@ -36,11 +36,17 @@ pub(crate) struct Pair<'a> {
     pub i1: &'a [f32],
 }
 
-/// Each row's changes of a pass, `(x, new flow)`, for this pass and the one before (rows
-/// `0..h` and `h..2h`, their roles swapped every pass): scratch of
-/// [`select_at_boundaries`], kept by the caller between calls (empty lists or garbage
-/// between calls).
-pub(crate) type RowChanges = Vec<Vec<(usize, [f32; 2])>>;
+/// Scratch of [`select_at_boundaries`], kept by the caller between calls (empty or
+/// garbage between calls).
+#[derive(Debug, Default)]
+pub(crate) struct RowChanges {
+    /// Each row's changes of a pass, `(x, new flow)`, for this pass and the one before
+    /// (rows `0..h` and `h..2h`, their roles swapped every pass).
+    rows: Vec<Vec<(usize, [f32; 2])>>,
+    /// One bit per pixel, `w.div_ceil(64)` words per row: the pixels a pass after the
+    /// first examines in that row ([`reselect_row`]).
+    marks: Vec<u64>,
+}
 
 /// Runs `passes` passes of the selection over `flow` (`w x h`, row-major) with candidates
 /// `reach_px` pixels away; `changes` is scratch.
@@ -64,21 +70,30 @@ pub(crate) fn select_at_boundaries(
     // Few pixels change: each row lists its changes while every row reads the pass's
     // input, then they are written in. No copy of the field (2.4 MB at 640x480: its pages
     // faulted in by a one-shot `riseg flow`, and copied twice per estimate).
-    if changes.len() < 2 * h {
-        changes.resize_with(2 * h, Vec::new);
+    let RowChanges { rows: lists, marks } = changes;
+    if lists.len() < 2 * h {
+        lists.resize_with(2 * h, Vec::new);
     }
-    let (mut now, mut before) = changes[..2 * h].split_at_mut(h);
+    let words = w.div_ceil(64);
+    if marks.len() < words * h {
+        marks.resize(words * h, 0);
+    }
+    let marks = &mut marks[..words * h];
+    let (mut now, mut before) = lists[..2 * h].split_at_mut(h);
     for pass in 0..passes {
         let src = &*flow;
         let earlier = (pass > 0).then_some(&*before);
-        now.par_iter_mut().enumerate().for_each(|(y, row)| {
-            row.clear();
-            let rows = Rows::new(images, src, y, reach_px);
-            match earlier {
-                None => select_row(images, &rows, y, row),
-                Some(earlier) => reselect_row(images, &rows, y, earlier, row),
-            }
-        });
+        now.par_iter_mut()
+            .zip(marks.par_chunks_mut(words))
+            .enumerate()
+            .for_each(|(y, (row, marked))| {
+                row.clear();
+                let rows = Rows::new(images, src, y, reach_px);
+                match earlier {
+                    None => select_row(images, &rows, y, row),
+                    Some(earlier) => reselect_row(images, &rows, y, earlier, marked, row),
+                }
+            });
         for (y, row) in now.iter().enumerate() {
             for &(x, f) in row {
                 if let Some(v) = flow.get_mut(y * w + x) {
@@ -90,24 +105,24 @@ pub(crate) fn select_at_boundaries(
     }
 }
 
-/// The rows of the flow one row's selection reads: its own and those `reach` above and
+/// The rows of the flow one row's selection reads: its own and those `reach_px` above and
 /// below (clamped to the image).
 struct Rows<'a> {
     here: &'a [[f32; 2]],
     above: &'a [[f32; 2]],
     below: &'a [[f32; 2]],
-    reach: usize,
+    reach_px: usize,
 }
 
 impl<'a> Rows<'a> {
-    fn new(images: Pair<'_>, src: &'a [[f32; 2]], y: usize, reach: usize) -> Self {
+    fn new(images: Pair<'_>, src: &'a [[f32; 2]], y: usize, reach_px: usize) -> Self {
         let (w, h) = (images.w, images.h);
         let row = |r: usize| &src[r * w..][..w];
         Self {
             here: row(y),
-            above: row(y.saturating_sub(reach)),
-            below: row(y.saturating_add(reach).min(h - 1)),
-            reach,
+            above: row(y.saturating_sub(reach_px)),
+            below: row(y.saturating_add(reach_px).min(h - 1)),
+            reach_px,
         }
     }
 
@@ -115,8 +130,8 @@ impl<'a> Rows<'a> {
     fn sides(&self, x: usize) -> (usize, usize) {
         let w = self.here.len();
         (
-            x.saturating_sub(self.reach),
-            x.saturating_add(self.reach).min(w - 1),
+            x.saturating_sub(self.reach_px),
+            x.saturating_add(self.reach_px).min(w - 1),
         )
     }
 
@@ -133,14 +148,14 @@ impl<'a> Rows<'a> {
         let (f, [left, right, up, down]) = (self.here[x], self.candidates(x));
         let mut s: [f32; 2] =
             core::array::from_fn(|c| larger((f[c] - up[c]).abs(), (f[c] - down[c]).abs()));
-        if x >= self.reach && x.saturating_add(self.reach) < w {
+        if x >= self.reach_px && x.saturating_add(self.reach_px) < w {
             for (c, s) in s.iter_mut().enumerate() {
                 *s = larger(*s, larger((f[c] - left[c]).abs(), (f[c] - right[c]).abs()));
             }
         } else {
             s[0] = larger(s[0], larger(gap(f, left), gap(f, right)));
         }
-        larger(s[0], s[1]) > SPREAD_PX
+        examined(s)
     }
 
     /// The flow pixel `(x, y)` takes, if not its own: whichever candidate more than
@@ -165,6 +180,14 @@ impl<'a> Rows<'a> {
     }
 }
 
+/// Whether a pixel whose candidates differ from its flow by `spread` (per component, as
+/// [`select_row`] computes it) is examined: more than [`SPREAD_PX`], or NaN. One test for
+/// every pass, so that the later passes examine what a pass over every pixel would.
+fn examined(spread: [f32; 2]) -> bool {
+    let s = larger(spread[0], spread[1]);
+    s > SPREAD_PX || s.is_nan()
+}
+
 /// The larger difference of two flows' components.
 fn gap(f: [f32; 2], g: [f32; 2]) -> f32 {
     larger((g[0] - f[0]).abs(), (g[1] - f[1]).abs())
@@ -176,10 +199,8 @@ const BLOCK: usize = 64;
 /// Row `y` of one pass over `rows`: the pixels that change, as `(x, new flow)`, in
 /// `changes`.
 fn select_row(images: Pair<'_>, rows: &Rows<'_>, y: usize, changes: &mut Vec<(usize, [f32; 2])>) {
-    let (here, above, below, reach_px) = (rows.here, rows.above, rows.below, rows.reach);
+    let (here, above, below, reach_px) = (rows.here, rows.above, rows.below, rows.reach_px);
     let w = here.len();
-    let left = |x: usize| here[x.saturating_sub(reach_px)];
-    let right = |x: usize| here[x.saturating_add(reach_px).min(w - 1)];
     let (flat, up, down) = (
         here.as_flattened(),
         above.as_flattened(),
@@ -215,8 +236,8 @@ fn select_row(images: Pair<'_>, rows: &Rows<'_>, y: usize, changes: &mut Vec<(us
             }
         }
         for k in (0..lo).chain(hi.max(lo)..n) {
-            let (x, f) = (start + k, here[start + k]);
-            spread[2 * k] = larger(spread[2 * k], larger(gap(f, left(x)), gap(f, right(x))));
+            let (f, (l, r)) = (here[start + k], rows.sides(start + k));
+            spread[2 * k] = larger(spread[2 * k], larger(gap(f, here[l]), gap(f, here[r])));
         }
         // Groups of `GROUP` pixels none of which passes are skipped at once.
         for (j, group) in spread[..m].chunks(2 * GROUP).enumerate() {
@@ -224,7 +245,7 @@ fn select_row(images: Pair<'_>, rows: &Rows<'_>, y: usize, changes: &mut Vec<(us
                 continue;
             }
             for (k, s) in group.chunks_exact(2).enumerate() {
-                if larger(s[0], s[1]) <= SPREAD_PX {
+                if !examined([s[0], s[1]]) {
                     continue;
                 }
                 let x = start + j * GROUP + k;
@@ -238,16 +259,20 @@ fn select_row(images: Pair<'_>, rows: &Rows<'_>, y: usize, changes: &mut Vec<(us
 
 /// Row `y` of a pass after the first, over `rows`: as [`select_row`], but only at the
 /// pixels whose own flow or a candidate changed in the previous pass (`earlier`, its
-/// changes per row).
+/// changes per row). `marked` is scratch of one bit per pixel of the row.
 fn reselect_row(
     images: Pair<'_>,
     rows: &Rows<'_>,
     y: usize,
     earlier: &[Vec<(usize, [f32; 2])>],
+    marked: &mut [u64],
     changes: &mut Vec<(usize, [f32; 2])>,
 ) {
-    let (w, h, reach) = (images.w, images.h, rows.reach);
-    let (up, down) = (y.saturating_sub(reach), y.saturating_add(reach).min(h - 1));
+    let (w, h, reach_px) = (images.w, images.h, rows.reach_px);
+    let (up, down) = (
+        y.saturating_sub(reach_px),
+        y.saturating_add(reach_px).min(h - 1),
+    );
     let (own, above, below) = (&earlier[y], &earlier[up], &earlier[down]);
     if own.is_empty() && above.is_empty() && below.is_empty() {
         return;
@@ -255,7 +280,7 @@ fn reselect_row(
     // The pixels that read a changed flow: at its own place, above or below it, and
     // those whose left or right candidate it is (at the row's ends, all whose clamped
     // candidate falls on it); one bit each, so that they are visited once, in order.
-    let mut marked = vec![0u64; w.div_ceil(64)];
+    marked.fill(0);
     let mut mark = |x: usize| {
         if let Some(word) = marked.get_mut(x / 64) {
             *word |= 1 << (x % 64);
@@ -267,13 +292,13 @@ fn reselect_row(
     for &(p, _) in own {
         mark(p);
         if p == 0 {
-            (0..=reach.min(w - 1)).for_each(&mut mark);
-        } else if let Some(x) = p.checked_add(reach).filter(|&x| x < w) {
+            (0..=reach_px.min(w - 1)).for_each(&mut mark);
+        } else if let Some(x) = p.checked_add(reach_px).filter(|&x| x < w) {
             mark(x);
         }
         if p == w - 1 {
-            ((w - 1).saturating_sub(reach)..w).for_each(&mut mark);
-        } else if let Some(x) = p.checked_sub(reach) {
+            ((w - 1).saturating_sub(reach_px)..w).for_each(&mut mark);
+        } else if let Some(x) = p.checked_sub(reach_px) {
             mark(x);
         }
     }
@@ -475,7 +500,7 @@ mod tests {
             sum / n as f32
         };
         let mut flow = ramp.clone();
-        select_at_boundaries(images, &mut flow, 2, 4, &mut Vec::new());
+        select_at_boundaries(images, &mut flow, 2, 4, &mut RowChanges::default());
         let (before, after) = (band_epe(&ramp), band_epe(&flow));
         eprintln!("EPE within 5 px of the boundary: ramp {before:.3}, selected {after:.3} px");
         // Measured: 1.200 -> 0.543 px (the pixels whose window straddles the boundary stay off).
@@ -483,21 +508,69 @@ mod tests {
         assert!(after < 0.6 * before, "{after} vs {before}");
         // No pass, or no reach, changes nothing.
         let mut same = ramp.clone();
-        let mut changes = Vec::new();
+        let mut changes = RowChanges::default();
         select_at_boundaries(images, &mut same, 0, 4, &mut changes);
         select_at_boundaries(images, &mut same, 2, 0, &mut changes);
         assert_eq!(same, ramp);
     }
 
-    /// Passes after the first look only next to the previous pass's changes; the result
-    /// must be that of passes over every pixel.
-    #[test]
-    fn later_passes_match_passes_over_every_pixel() {
-        let (w, h) = (37usize, 23usize);
+    /// A flow field's bits (NaN compares equal to itself).
+    fn bits(flow: &[[f32; 2]]) -> Vec<[u32; 2]> {
+        flow.iter().map(|f| f.map(f32::to_bits)).collect()
+    }
+
+    /// Two textured images, `w x h`, the second the first moved by two pixels.
+    fn textured(w: usize, h: usize) -> (Vec<f32>, Vec<f32>) {
         let i0: Vec<f32> = (0..w * h)
             .map(|i| (i * 7919 % 251) as f32 + 0.5 * (i % w) as f32)
             .collect();
-        let i1: Vec<f32> = (0..w * h).map(|i| i0[(i + 2) % (w * h)]).collect();
+        let i1 = (0..w * h).map(|i| i0[(i + 2) % (w * h)]).collect();
+        (i0, i1)
+    }
+
+    /// `passes` passes of [`select_row`] over every pixel of `start`: what
+    /// [`select_at_boundaries`] must give.
+    fn over_every_pixel(
+        images: Pair<'_>,
+        start: &[[f32; 2]],
+        passes: usize,
+        reach: usize,
+    ) -> Vec<[f32; 2]> {
+        let mut every = start.to_vec();
+        for _ in 0..passes {
+            let mut changed = Vec::new();
+            for y in 0..images.h {
+                let mut row = Vec::new();
+                select_row(images, &Rows::new(images, &every, y, reach), y, &mut row);
+                changed.extend(row.into_iter().map(|(x, f)| (y * images.w + x, f)));
+            }
+            for (i, f) in changed {
+                every[i] = f;
+            }
+        }
+        every
+    }
+
+    /// [`select_at_boundaries`] over `start` with fresh scratch.
+    fn sparse(images: Pair<'_>, start: &[[f32; 2]], passes: usize, reach: usize) -> Vec<[f32; 2]> {
+        let mut sparse = start.to_vec();
+        select_at_boundaries(
+            images,
+            &mut sparse,
+            passes,
+            reach,
+            &mut RowChanges::default(),
+        );
+        sparse
+    }
+
+    /// Passes after the first look only next to the previous pass's changes; the result
+    /// must be that of passes over every pixel, also where a candidate's flow is NaN (at a
+    /// row's ends, a NaN candidate makes the spread NaN, which is examined).
+    #[test]
+    fn later_passes_match_passes_over_every_pixel() {
+        let (w, h) = (37usize, 23usize);
+        let (i0, i1) = textured(w, h);
         let images = Pair {
             w,
             h,
@@ -505,32 +578,72 @@ mod tests {
             i1: &i1,
         };
         // Blocks of flows with steps of several pixels between them.
-        let start: Vec<[f32; 2]> = (0..w * h)
+        let mut start: Vec<[f32; 2]> = (0..w * h)
             .map(|i| {
                 let (x, y) = (i % w, i / w);
                 [(x / 5 % 3) as f32 * 2.5, ((x + y) / 7 % 2) as f32 * -3.0]
             })
             .collect();
-        for (passes, reach) in [(2, 4), (3, 2), (4, 1), (3, 40)] {
-            let mut every = start.clone();
-            for _ in 0..passes {
-                let mut changed = Vec::new();
-                for y in 0..h {
-                    let mut row = Vec::new();
-                    select_row(images, &Rows::new(images, &every, y, reach), y, &mut row);
-                    changed.extend(row.into_iter().map(|(x, f)| (y * w + x, f)));
-                }
-                for (i, f) in changed {
-                    every[i] = f;
-                }
+        // NaN flows at some rows' ends.
+        for y in 0..h {
+            if y % 3 == 1 {
+                start[y * w + w - 1][1] = f32::NAN;
             }
-            let mut sparse = start.clone();
-            select_at_boundaries(images, &mut sparse, passes, reach, &mut Vec::new());
+            if y % 5 == 2 {
+                start[y * w][1] = f32::NAN;
+            }
+        }
+        // Whether some case's later passes changed anything (else a later pass that
+        // examined nothing would pass).
+        let mut later_changes = false;
+        for (passes, reach) in [(2, 4), (3, 2), (4, 1), (3, 40)] {
+            let every = over_every_pixel(images, &start, passes, reach);
+            let once = over_every_pixel(images, &start, 1, reach);
             assert_ne!(
-                every, start,
+                bits(&once),
+                bits(&start),
                 "passes {passes}, reach {reach}: nothing changed"
             );
-            assert_eq!(sparse, every, "passes {passes}, reach {reach}");
+            later_changes |= bits(&every) != bits(&once);
+            assert_eq!(
+                bits(&sparse(images, &start, passes, reach)),
+                bits(&every),
+                "passes {passes}, reach {reach}"
+            );
+        }
+        assert!(later_changes, "no later pass changed anything");
+    }
+
+    /// As [`later_passes_match_passes_over_every_pixel`], on a single column and a single
+    /// row, where a flow of -2 px along the line (the images' motion) moves on by one
+    /// candidate every pass.
+    #[test]
+    fn later_passes_match_on_a_single_row_or_column() {
+        for (w, h) in [(1usize, 5usize), (5, 1)] {
+            let (i0, i1) = textured(w, h);
+            let images = Pair {
+                w,
+                h,
+                i0: &i0,
+                i1: &i1,
+            };
+            let along = usize::from(w == 1);
+            for (reach, at, passes) in [(1, 1, 2), (1, 1, 3), (2, 0, 2), (2, 0, 3)] {
+                let mut start = vec![[0.0f32; 2]; w * h];
+                start[at][along] = -2.0;
+                let every = over_every_pixel(images, &start, passes, reach);
+                let case = format!("{w}x{h}, passes {passes}, reach {reach}");
+                assert_ne!(
+                    bits(&every),
+                    bits(&over_every_pixel(images, &start, 1, reach)),
+                    "{case}: no later change"
+                );
+                assert_eq!(
+                    bits(&sparse(images, &start, passes, reach)),
+                    bits(&every),
+                    "{case}"
+                );
+            }
         }
     }
 
@@ -545,7 +658,10 @@ mod tests {
             i1: &i0,
         };
         let mut flow = vec![[1.5, -2.0]; w * h];
-        let mut changes = vec![vec![(0, [9.0; 2])]; 7];
+        let mut changes = RowChanges {
+            rows: vec![vec![(0, [9.0; 2])]; 7],
+            marks: vec![!0; 2],
+        };
         select_at_boundaries(images, &mut flow, 3, 1000, &mut changes);
         assert!(flow.iter().all(|f| *f == [1.5, -2.0]));
         // A flow of the wrong length is left alone; a NaN flow does not panic.

@@ -68,7 +68,7 @@ fn densify_n<const N: usize>(
         .for_each(|(y, chunk)| {
             let (sw, rest) = chunk.split_at_mut(w);
             let (su, sv) = rest.split_at_mut(w);
-            // All four rows cut to `w`: one bounds check serves them all.
+            // All three rows cut to `w`: one bounds check serves them all.
             let (sw, su, sv) = (&mut sw[..w], &mut su[..w], &mut sv[..w]);
             let first = ys.partition_point(|&py| py + size <= y);
             let t_row = &i0[y * w..][..w];

@@ -250,8 +250,11 @@ pub(crate) fn refine(
     // The flow and system planes of both colours share one buffer. At the pyramid levels
     // it comes from the flow pool: the full-resolution flow made after the last level
     // then takes it with its pages already faulted in (one-shot `riseg flow` MEDIUM, 640x480:
-    // 3136 -> 2653 page faults). Not at full resolution, where it is larger than a flow
-    // and would leave the pool as the estimate's flow.
+    // 3136 -> 2653 page faults), as long as it fits in the room of a flow (`w x h` of the
+    // full resolution). On very small images (64x48) the buffer with its guards is larger:
+    // it is allocated anew and kept in the pool, which costs memory only. Not at full
+    // resolution, where it is larger than a flow and would leave the pool as the estimate's
+    // flow.
     let front_len = 2 * sp.len(2) + 2 * sp.len(5);
     let (mut front_pairs, mut front_values) = (None, None);
     let front: &mut [f32] = match flows {
@@ -761,6 +764,8 @@ mod tests {
     fn planes_come_from_the_flow_pool_only_when_it_is_given() {
         // With the flow pool, the flow and system planes are one of its buffers, given
         // back holding the last values (not zeros); without it, the flow pool is not used.
+        // Either way the refined flow is the same, also when the pools hold buffers of
+        // NaN (a value read before it is written would show).
         let (w, h) = (12, 9);
         let i: Vec<f32> = (0..w * h).map(|k| ((k * 29) % 13) as f32 * 9.0).collect();
         let s = RefineSettings {
@@ -773,14 +778,29 @@ mod tests {
         };
         let sp = Split::new(w, h);
         let pairs = (2 * sp.len(2) + 2 * sp.len(5)).div_ceil(2);
-        for given in [false, true] {
+        let refined = [false, true].map(|given| {
             let (pool, flows) = (Pool::default(), Pool::default());
             let mut flow = vec![[0.75f32, -0.5]; w * h];
             let inp = same_images(&i, (w, h), &pool);
+            let mut nan = pool.scratch(2 * pairs);
+            nan.fill(f32::NAN);
+            pool.put(nan);
+            let mut nan = flows.scratch(pairs);
+            nan.fill([f32::NAN; 2]);
+            flows.put(nan);
             refine(inp, &mut flow, &s, &pool, given.then_some(&flows));
             let kept = flows.scratch(pairs);
-            assert_eq!(kept.iter().any(|v| *v != [0.0; 2]), given, "{given}");
-        }
+            let written = kept.iter().flatten().any(|v| !v.is_nan());
+            assert_eq!(written, given, "{given}");
+            flow.iter().map(|f| f.map(f32::to_bits)).collect::<Vec<_>>()
+        });
+        assert_eq!(refined[0], refined[1]);
+        assert!(
+            refined[0]
+                .iter()
+                .flatten()
+                .all(|&b| f32::from_bits(b).is_finite())
+        );
     }
 
     #[test]

@@ -484,7 +484,7 @@ pub(super) fn fit_table(
     }
     let largest = largest_component(gwp, &mut s.grid, &mut s.queue);
     s.flat.clear();
-    for ((&u, &v), &cell) in coords.u.iter().zip(&coords.v).zip(&s.cand_cell) {
+    for ((&u, &v), &cell) in coords.u_m.iter().zip(&coords.v_m).zip(&s.cand_cell) {
         if s.grid[cell as usize] == largest {
             s.flat.push([u, v]);
         }
@@ -495,12 +495,12 @@ pub(super) fn fit_table(
 }
 
 /// The candidates relative to the table plane, computed once for the passes of the bend
-/// and the hull: in-plane coordinates `u = e1 · p`, `v = e2 · p`, height over the plane,
-/// and whether the normal is within `plane_normal_deg` of the plane's.
+/// and the hull: in-plane coordinates `u_m = e1 · p`, `v_m = e2 · p`, height over the
+/// plane (metres), and whether the normal is within `plane_normal_deg` of the plane's.
 #[derive(Debug, Default)]
 struct PlaneCoords {
-    u: Vec<f32>,
-    v: Vec<f32>,
+    u_m: Vec<f32>,
+    v_m: Vec<f32>,
     height_m: Vec<f32>,
     facing: Vec<bool>,
 }
@@ -509,11 +509,11 @@ impl PlaneCoords {
     fn fill(&mut self, cands: &Samples, plane: &TablePlane, [e1, e2]: [P3; 2], cos_normal: f32) {
         let k = cands.len();
         let n = plane.normal_array();
-        self.u.resize(k, 0.0);
-        self.v.resize(k, 0.0);
+        self.u_m.resize(k, 0.0);
+        self.v_m.resize(k, 0.0);
         self.height_m.resize(k, 0.0);
         self.facing.resize(k, false);
-        let (u, v) = (&mut self.u[..k], &mut self.v[..k]);
+        let (u, v) = (&mut self.u_m[..k], &mut self.v_m[..k]);
         let (height_m, facing) = (&mut self.height_m[..k], &mut self.facing[..k]);
         let [px, py, pz] = cands.p.each_ref().map(|v| &v[..k]);
         let [nx, ny, nz] = cands.n.each_ref().map(|v| &v[..k]);
@@ -529,10 +529,10 @@ impl PlaneCoords {
     /// Marks in `out` the candidates within `widen` times their tolerances `tol_m` of
     /// plane plus `bend` whose normal faces the plane's.
     fn select(&self, tol_m: &[f32], bend: &Bend, widen: f32, out: &mut Vec<bool>) {
-        let k = self.u.len();
+        let k = self.u_m.len();
         out.clear();
         out.resize(k, false);
-        let (u, v, height_m) = (&self.u[..k], &self.v[..k], &self.height_m[..k]);
+        let (u, v, height_m) = (&self.u_m[..k], &self.v_m[..k], &self.height_m[..k]);
         let (tol_m, facing, out) = (&tol_m[..k], &self.facing[..k], &mut out[..k]);
         for j in 0..k {
             let off = height_m[j] - bend.at_uv(u[j], v[j]);
@@ -547,7 +547,7 @@ impl PlaneCoords {
         // selected ones only.
         out.clear();
         out.resize(k, [0.0; 3]);
-        let (u, v, height_m) = (&self.u[..k], &self.v[..k], &self.height_m[..k]);
+        let (u, v, height_m) = (&self.u_m[..k], &self.v_m[..k], &self.height_m[..k]);
         let mut next = 0;
         for (j, &on) in selected.iter().enumerate() {
             if let Some(o) = out.get_mut(next) {
@@ -777,7 +777,8 @@ fn ransac(
 /// `plane`).
 fn refit(pts: &Samples, inlier: &[bool], plane: &TablePlane) -> Option<TablePlane> {
     // Count, sums and the upper triangle of the sums of `p pᵀ`, each in point order (the
-    // product of two `f32` is exact in `f64`, so the mirrored triangle is the full sum).
+    // lower triangle's products are the same, `x * y == y * x`, so the mirrored triangle
+    // is the full sum).
     let mut n = 0.0f64;
     let mut sum = [0.0f64; 3];
     let mut sq = [0.0f64; 6];

@@ -105,6 +105,10 @@ pub(crate) fn find(parent: &mut [u32], mut i: u32) -> u32 {
 }
 
 /// Joins the trees of `a` and `b`; the smaller root becomes the root of both.
+///
+/// Invariant (with [`find`]): a pixel's parent is never after it, `parent[i] <= i`, as
+/// both only ever point a pixel to a smaller index; [`grow_segments`] reads ids through
+/// it.
 pub(crate) fn union(parent: &mut [u32], a: u32, b: u32) {
     let (ra, rb) = (find(parent, a), find(parent, b));
     if ra != rb {
@@ -357,6 +361,7 @@ pub(super) fn grow_segments(
                 continue;
             }
             let up = s.parent[i] as usize;
+            debug_assert!(up <= i, "union-find parent after its pixel");
             s.id[i] = if up == i {
                 count += 1;
                 count - 1

@@ -10,7 +10,7 @@
 //! objects: for the smoothing, depths within [`SegmenterParams::depth_jump_at_m`] of the
 //! centre's; for the normals and creases (`r` pixels apart), within `r` times that.
 
-use super::{RgbdFrame, SegmenterParams};
+use super::{CHUNK_PX, RgbdFrame, SegmenterParams};
 use crate::par::*;
 use riseg_core::Intrinsics;
 
@@ -381,15 +381,15 @@ pub(super) fn drop_small_regions(
 }
 
 /// The first index from `from` on where `bytes` is not zero. Flags are sparse: runs of
-/// zeros are skipped sixteen bytes at a time (a test the compiler vectorises).
+/// zeros are skipped [`CHUNK_PX`] bytes at a time (a test the compiler vectorises).
 fn next_nonzero(bytes: &[u8], from: usize) -> Option<usize> {
     let rest = bytes.get(from..)?;
-    let mut chunks = rest.chunks_exact(16);
+    let mut chunks = rest.chunks_exact(CHUNK_PX);
     let skipped = chunks
         .by_ref()
         .take_while(|c| c.iter().fold(0, |a, &b| a | b) == 0)
         .count();
-    let at = from + 16 * skipped;
+    let at = from + CHUNK_PX * skipped;
     bytes[at..].iter().position(|&b| b != 0).map(|k| at + k)
 }
 

@@ -24,7 +24,7 @@
 //!    its labelled border pixels) is at least `hole_min_area_m2` it is flagged [`HOLE`].
 
 use super::{
-    SegmentError, SegmenterParams,
+    CHUNK_PX, SegmentError, SegmenterParams,
     geometry::{CREASE_BLOCK, P3, dot, sub},
 };
 use crate::par::*;
@@ -34,8 +34,6 @@ pub(super) const HOLE: u8 = 1;
 const NONE: u32 = u32::MAX;
 /// Share of a hole's border that must be labelled for the hole to be filled.
 const ENCLOSED_SHARE: f32 = 0.8;
-/// Pixels a chunk of the scans that skip runs of pixels with nothing to do.
-const CHUNK_PX: usize = 16;
 
 /// Scratch of [`grow_segments`], reused across frames.
 #[derive(Debug, Default)]
@@ -92,6 +90,12 @@ pub(super) struct GrowInput<'a> {
     pub(super) object_rows: core::ops::Range<usize>,
     /// Footprint of each pixel, square metres per pixel at its depth.
     pub(super) px_area_m2: &'a [f32],
+}
+
+/// Whether every id of `ids` is `NONE` (no segment): one test without branches, for
+/// chunks of up to [`CHUNK_PX`] pixels.
+fn all_none(ids: &[u32]) -> bool {
+    ids.iter().fold(true, |all, &d| all & (d == NONE))
 }
 
 /// The root of `i` in the union-find forest `parent` (halving the path on the way).
@@ -403,10 +407,7 @@ pub(super) fn grow_segments(
         for x0 in (0..w).step_by(CHUNK_PX) {
             let xs = x0..(x0 + CHUNK_PX).min(w);
             // A chunk of pixels in no segment adds nothing.
-            if s.id[y * w + xs.start..y * w + xs.end]
-                .iter()
-                .fold(true, |all, &d| all & (d == NONE))
-            {
+            if all_none(&s.id[y * w + xs.start..y * w + xs.end]) {
                 continue;
             }
             for x in xs {
@@ -536,7 +537,7 @@ pub(super) fn grow_segments(
             labels.fill(0);
             for (labels, id) in labels.chunks_mut(CHUNK_PX).zip(id.chunks(CHUNK_PX)) {
                 // Most chunks are in no segment at all: one test without branches.
-                if id.iter().fold(true, |all, &d| all & (d == NONE)) {
+                if all_none(id) {
                     continue;
                 }
                 for (l, &d) in labels.iter_mut().zip(id) {

@@ -50,7 +50,7 @@
 //!    hull, too high, or dropped as too small).
 
 use super::{
-    HEAT_CERTAIN, HEAT_UNCERTAIN, SegmenterParams,
+    CHUNK_PX, HEAT_CERTAIN, HEAT_UNCERTAIN, SegmenterParams,
     edt::{EdtScratch, Window, squared_distance},
     geometry::{CREASE_SOFT, P3},
     grow::HOLE,
@@ -326,10 +326,7 @@ pub(super) fn heatmap(
         });
 }
 
-/// Pixels a run of [`labelled_runs`].
-const RUN_PX: usize = 16;
-
-/// The rows of `win` cut into runs of up to [`RUN_PX`] pixels, `(y, xs)` in row-major
+/// The rows of `win` cut into runs of up to [`CHUNK_PX`] pixels, `(y, xs)` in row-major
 /// order, leaving out the runs without a labelled pixel (one test without branches a run):
 /// what a pass over the segment pixels of the window visits.
 fn labelled_runs(
@@ -340,8 +337,8 @@ fn labelled_runs(
     win.rows()
         .flat_map(|(y, xs)| {
             let end = xs.end;
-            xs.step_by(RUN_PX)
-                .map(move |x0| (y, x0..(x0 + RUN_PX).min(end)))
+            xs.step_by(CHUNK_PX)
+                .map(move |x0| (y, x0..(x0 + CHUNK_PX).min(end)))
         })
         .filter(move |(y, xs)| {
             labels[y * w + xs.start..y * w + xs.end]

@@ -37,6 +37,10 @@ pub use classical::{ClassicalOutput, ClassicalSegmenter};
 pub use params::SegmenterParams;
 pub use plane::TablePlane;
 
+/// Pixels a chunk of the scans that skip runs of pixels with nothing to do: one test
+/// without branches a chunk (the compiler vectorises it), then the pixels one by one.
+pub(super) const CHUNK_PX: usize = 16;
+
 /// Union-find over `u32` indices (roots are the smallest index), shared with
 /// [`crate::eval::ceiling`].
 pub(crate) use grow::{find as union_find_root, union as union_find_join};

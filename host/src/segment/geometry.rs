@@ -204,7 +204,7 @@ impl WindowSums {
         cz: &[f32],
         params: &SegmenterParams,
         [ox, oy, oz]: [&mut [f32]; 3],
-        none_z: f32,
+        none_z_m: f32,
     ) {
         let w = self.jump.len();
         for (j, &z) in self.jump.iter_mut().zip(cz) {
@@ -222,13 +222,13 @@ impl WindowSums {
             let m = mask(cz[x] > 0.0);
             ox[x] = keep(ax / an, m);
             oy[x] = keep(ay / an, m);
-            oz[x] = pick(az / an, none_z, m);
+            oz[x] = pick(az / an, none_z_m, m);
         }
     }
 
-    /// The means where the centre has a reading, elsewhere zero (z: `none_z`), into
+    /// The means where the centre has a reading, elsewhere zero (z: `none_z_m`), into
     /// `(ox, oy, oz)`.
-    fn means(&self, cz: &[f32], [ox, oy, oz]: [&mut [f32]; 3], none_z: f32) {
+    fn means(&self, cz: &[f32], [ox, oy, oz]: [&mut [f32]; 3], none_z_m: f32) {
         let w = self.jump.len();
         let [sx, sy, sz, sn] = &self.acc;
         let (sx, sy, sz, sn, cz) = (&sx[..w], &sy[..w], &sz[..w], &sn[..w], &cz[..w]);
@@ -237,7 +237,7 @@ impl WindowSums {
             let m = mask(cz[x] > 0.0);
             ox[x] = keep(sx[x] / sn[x], m);
             oy[x] = keep(sy[x] / sn[x], m);
-            oz[x] = pick(sz[x] / sn[x], none_z, m);
+            oz[x] = pick(sz[x] / sn[x], none_z_m, m);
         }
     }
 }
@@ -246,14 +246,16 @@ impl WindowSums {
 /// for: the default's. Other radii take the general path, with the same result.
 const DEFAULT_SMOOTH_RADIUS_PX: usize = 3;
 
-/// Edge-aware smoothing of the points back-projected from `frame` (no reading:
-/// `[0, 0, 0]`): the mean of the points within
+/// Edge-aware smoothing of the points back-projected from `frame`: the mean of the points
+/// within
 /// `smooth_radius_px` along the row whose depth is within
 /// [`SegmenterParams::depth_jump_at_m`] of the centre's, then the same along the column of
 /// that result (a separable bilateral filter with a box kernel: steps larger than the
 /// tolerance stay sharp). Sums run in increasing x, then y. Writes `out` and
 /// `scratch.planes` (padded by `normal_radius_px`). Rows run in parallel with the
-/// `threads` feature, with the same result.
+/// `threads` feature, with the same result. A pixel without a reading is `[0, 0, NaN]`
+/// ([`NO_READING`]) in the smoothing's own buffers (the back-projected rows and the row
+/// pass's result); only the outputs `out` and `scratch.planes` give it `[0, 0, 0]`.
 pub(super) fn smooth_points(
     frame: &RgbdFrame<'_>,
     k: &Intrinsics,
@@ -469,7 +471,10 @@ fn sum_taps<const N: usize>(
     // point gives (small integers).
     let mut taken = 0u32;
     for [qx, qy, qz] in taps {
-        // A tap without a reading is NaN ([`NO_READING`]): the test fails.
+        // A tap without a reading is NaN ([`NO_READING`]): the test fails. There is no
+        // `qz > 0` test: it is not needed only because every tap depth that is not NaN
+        // is above 0, in the row pass a checked input (finite, positive:
+        // `back_project_row`) and in the column pass a mean of such depths.
         let m = mask((qz[x] - cz).abs() <= jump);
         ax += keep(qx[x], m);
         ay += keep(qy[x], m);

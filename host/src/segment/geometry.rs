@@ -687,5 +687,36 @@ mod tests {
             |v: &[Vec<f32>; 3]| -> Vec<u32> { v.iter().flatten().map(|f| f.to_bits()).collect() };
         assert_eq!(bits(&fused), bits(&general));
         assert!(general[2].contains(&0.0) && general[2].iter().any(|&z| z > 0.0));
+        // A plain reference, one test per tap in tap order, on a copy that marks a missing
+        // reading 0.0: it does not share `sum_taps`.
+        let z0: Vec<f32> = row[2]
+            .iter()
+            .map(|&z| if z.is_nan() { 0.0 } else { z })
+            .collect();
+        let mut plain = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+        for x in 0..w {
+            let cz = z0[x + r];
+            if cz <= 0.0 {
+                continue;
+            }
+            let jump = params.depth_jump_at_m(cz);
+            let (mut ax, mut ay, mut az, mut an) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+            for t in x..=x + 2 * r {
+                let qz = z0[t];
+                if qz.is_finite() && qz > 0.0 && (qz - cz).abs() <= jump {
+                    ax += row[0][t];
+                    ay += row[1][t];
+                    az += qz;
+                    an += 1.0;
+                }
+            }
+            [plain[0][x], plain[1][x], plain[2][x]] = [ax / an, ay / an, az / an];
+        }
+        assert_eq!(bits(&fused), bits(&plain));
+        for (x, &cz) in z0[r..r + w].iter().enumerate() {
+            if cz > 0.0 {
+                assert!(fused.iter().all(|p| !p[x].is_nan()), "NaN at x = {x}");
+            }
+        }
     }
 }

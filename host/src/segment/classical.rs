@@ -283,6 +283,38 @@ mod tests {
     }
 
     #[test]
+    fn every_marker_of_a_missing_reading_gives_the_same_output() {
+        let (w, h) = (320, 240);
+        let t = SyntheticTabletop::boxes(w, h, 5).unwrap();
+        // Holes scattered over table and objects, plus a block and a full row.
+        let mut rng = riseg_core::rng::Pcg32::new(11);
+        let holes: Vec<bool> = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                rng.below(9) == 0 || (100..130).contains(&x) && (90..110).contains(&y) || y == 60
+            })
+            .collect();
+        let mut seg = ClassicalSegmenter::new(SegmenterParams::default()).unwrap();
+        let outputs: Vec<_> = [0.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY]
+            .into_iter()
+            .map(|marker| {
+                let depth: Vec<f32> = t
+                    .depth_m
+                    .iter()
+                    .zip(&holes)
+                    .map(|(&z, &hole)| if hole { marker } else { z })
+                    .collect();
+                let frame = RgbdFrame::new(w, h, &t.rgb, &depth).unwrap();
+                seg.segment(&frame, &t.intrinsics).unwrap()
+            })
+            .collect();
+        assert!(outputs[0].segment_count() >= 2);
+        for out in &outputs[1..] {
+            assert_eq!(out, &outputs[0]);
+        }
+    }
+
+    #[test]
     fn bad_input_is_an_error_not_a_panic() {
         let t = SyntheticTabletop::boxes(64, 48, 5).unwrap();
         assert!(matches!(

@@ -347,7 +347,7 @@ mod tests {
             ));
         }
         // Tiny frames segment without panicking.
-        for (w, h) in [(1, 1), (3, 2), (1, 40), (1, 200_000)] {
+        for (w, h) in [(1, 1), (3, 2), (1, 40), (17, 1), (40, 1), (1, 200_000)] {
             let t = SyntheticTabletop::boxes(w, h, 5).unwrap();
             let frame = RgbdFrame::new(w, h, &t.rgb, &t.depth_m).unwrap();
             let _ = seg.segment(&frame, &t.intrinsics);

@@ -361,6 +361,8 @@ pub(super) fn grow_segments(
         for i in chunk {
             let link = links[i];
             if link & Links::GROWN == 0 {
+                // Already NONE, but with this store the scan measures fewer instructions
+                // (callgrind, 3 packed frames: 531.83 M against 532.30 M without it).
                 s.id[i] = NONE;
                 continue;
             }

@@ -543,11 +543,9 @@ pub(super) fn grow_segments(
                     continue;
                 }
                 for (l, &d) in labels.iter_mut().zip(id) {
-                    *l = if d == NONE {
-                        0
-                    } else {
-                        label[d as usize] as u16
-                    };
+                    if d != NONE {
+                        *l = label[d as usize] as u16;
+                    }
                 }
             }
         });

@@ -132,9 +132,32 @@ pub fn luma(rgb: ImageView<'_, [u8; 3]>) -> Image<f32> {
     Image::from_vec(width, height, data).expect("a view has height rows of width pixels")
 }
 
-/// The luma of one pixel, as [`luma`] computes it.
+/// The luma of one pixel, as [`luma`] computes it: `0.299 R + 0.587 G + 0.114 B` in `f32`,
+/// the products added left to right. The products come from [`LUMA_PRODUCTS`], bit for bit
+/// the `f32` products of the formula.
 pub(crate) fn luma_of(p: &[u8; 3]) -> f32 {
-    0.299 * f32::from(p[0]) + 0.587 * f32::from(p[1]) + 0.114 * f32::from(p[2])
+    let [r, g, b] = &LUMA_PRODUCTS;
+    r[usize::from(p[0])] + g[usize::from(p[1])] + b[usize::from(p[2])]
+}
+
+/// `weight · v` in `f32` for every channel value `v`, with the BT.601 weights of R, G and B.
+/// Three loads take less time than three conversions and products, though they are more
+/// instructions (the compiler gathers the bytes into lanes one by one): the luma of a
+/// 640x480 image 0.30 -> 0.19 ms, [`pyramid::downsample_luma`] 0.27 -> 0.17 ms, the decode
+/// of a one-shot `riseg flow`'s pair about 0.2 ms less (callgrind: 0.9 M more instructions).
+static LUMA_PRODUCTS: [[f32; 256]; 3] = [products(0.299), products(0.587), products(0.114)];
+
+/// `weight · v` for `v` in `0..=255` (constant evaluation rounds as run time does).
+const fn products(weight: f32) -> [f32; 256] {
+    let mut table = [0.0; 256];
+    let mut v: u8 = 0;
+    loop {
+        table[v as usize] = weight * v as f32;
+        if v == u8::MAX {
+            return table;
+        }
+        v += 1;
+    }
 }
 
 /// Flow-specific operations on the owned flow image ([`FlowImage`]).
@@ -269,6 +292,18 @@ mod tests {
         let want = [76.245, 149.685, 29.07, 255.0];
         for (a, b) in g.as_slice().iter().zip(want) {
             assert!((a - b).abs() < 1e-3, "{a} vs {b}");
+        }
+    }
+
+    /// The table lookup gives the formula's bits for every 8-bit RGB triple.
+    #[test]
+    fn luma_of_is_the_formula_bit_for_bit() {
+        for rg in 0..=u16::MAX {
+            let [r, g] = rg.to_be_bytes();
+            for b in 0..=u8::MAX {
+                let want = 0.299 * f32::from(r) + 0.587 * f32::from(g) + 0.114 * f32::from(b);
+                assert_eq!(luma_of(&[r, g, b]).to_bits(), want.to_bits(), "{r} {g} {b}");
+            }
         }
     }
 

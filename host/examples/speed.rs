@@ -31,9 +31,11 @@
 //! included, as the CLI runs it; the images are read as the CLI reads them. The two are
 //! timed alternately, one of each per run, so that load on the machine shifts both alike;
 //! the medians are reported. Each run times the process twice: writing over the flow the
-//! last run left at OUT (`process`; on ext4 a rename over an existing file starts the new
-//! file's write-back, milliseconds) and writing OUT's sibling `*.new.flo`, removed before
-//! the run outside the timing (`process_new`). `decode` is the median time of decoding both
+//! last run left at OUT (`process`: the rename deletes the old file, whose blocks ext4
+//! allocated at that run's own rename over a file; on a file system mounted with `discard`
+//! freeing them waits for a TRIM, ~2.3 ms here) and writing OUT's sibling `*.new.flo`,
+//! removed before the run outside the timing (`process_new`, the figure `bench/speed.sh`
+//! judges). `decode` is the median time of decoding both
 //! PNGs here one after the other, to one value per pixel, as the CLI reads them.
 
 use std::path::{Path, PathBuf};

@@ -636,7 +636,6 @@ impl DisFlow {
             &grid,
             h,
             prm.densify_outlier_per_grey,
-            pool,
             &self.flows,
             taps,
         );

@@ -47,7 +47,7 @@ use super::pyramid::{
     Padded, Plane, Tap, downsample, downsample_luma, gradients, luma_plane, upsample_flow,
 };
 use super::search::{
-    Grid, MAX_CANDIDATES, PatchFlow, SearchScratch, SearchSettings, Template, positions,
+    Grid, MAX_CANDIDATES, PatchFlow, SearchScratch, SearchSettings, Template, positions, reserve,
     search_level,
 };
 use super::variational::{RefineInput, RefineSettings, Warpable, refine};
@@ -307,6 +307,20 @@ struct Scratch {
     changes: RowChanges,
 }
 
+impl Scratch {
+    /// Room in every per-patch buffer for the grid of a `w x h` level, the largest an
+    /// estimate searches ([`SearchScratch::reserve`]); `p` and `stride` are the patch side
+    /// and spacing.
+    fn reserve(&mut self, (w, h): (usize, usize), p: usize, stride: usize) {
+        positions(w, p, stride, &mut self.xs);
+        positions(h, p, stride, &mut self.ys);
+        let patches = self.xs.len() * self.ys.len();
+        self.search.reserve(patches);
+        reserve(&mut self.patches, patches);
+        reserve(&mut self.taps, patches);
+    }
+}
+
 impl DisFlow {
     /// An estimator on rayon's global thread pool.
     ///
@@ -471,6 +485,17 @@ impl DisFlow {
         // levels serve the finer ones again (one-shot: 4776 -> 3951 page faults).
         pool.reserve_room(w * h);
         self.flows.reserve_room(w * h);
+        // The finest search: at full resolution with a level or a polish there.
+        let searched = if finest == 0 || polish {
+            0
+        } else {
+            finest.max(1)
+        };
+        scratch.reserve(
+            (w >> searched, h >> searched),
+            prm.patch_size_px,
+            prm.patch_stride_px,
+        );
         // A step at full resolution (a level there, a polish, the motion-boundary
         // selection) needs RGB input's luma there: made once, and level 1 is downsampled
         // from it (the values `downsample_luma` gives, bit for bit).

@@ -295,8 +295,10 @@ pub struct DisFlow {
 }
 
 /// The buffers of an estimate that are not planes: the patch grid, the search's and the
-/// densification's per-patch values, the boundary selection's change lists. Each grows to
-/// its largest use in the first estimate and is reused by the later ones.
+/// densification's per-patch values, the boundary selection's change lists. The per-patch
+/// ones are sized for the estimate's finest grid before its coarsest level
+/// ([`Scratch::reserve`]); each grows to its largest use in the first estimate and is reused
+/// by the later ones.
 #[derive(Debug, Default)]
 struct Scratch {
     xs: Vec<usize>,

@@ -19,9 +19,9 @@ use crate::par::*;
 
 /// Dense `w x h` flow from the patch flows of one level (`patches` row-major over the
 /// grid, which covers every pixel), `first` the level's first image and its width;
-/// `outlier_per_grey` is the weight's `κ`. `taps` is scratch (garbage after the call),
-/// kept by the caller between calls.
-#[allow(clippy::too_many_arguments)] // the level's inputs, its pools, scratch and one setting
+/// `outlier_per_grey` is the weight's `κ`. The flow is lent by `flows`; `taps` is scratch
+/// (garbage after the call), kept by the caller between calls.
+#[allow(clippy::too_many_arguments)] // the level's inputs, its pool, scratch and one setting
 pub(crate) fn densify(
     first: (&[f32], usize),
     i1: &Padded,
@@ -29,11 +29,10 @@ pub(crate) fn densify(
     grid: &Grid<'_>,
     h: usize,
     outlier_per_grey: f32,
-    pool: &Pool,
     flows: &Pool<[f32; 2]>,
     taps: &mut Vec<Tap>,
 ) -> Lent<[f32; 2]> {
-    with_patch_size!(grid.size, N => densify_n::<N>(first, i1, patches, grid, h, outlier_per_grey, pool, flows, taps))
+    with_patch_size!(grid.size, N => densify_n::<N>(first, i1, patches, grid, h, outlier_per_grey, flows, taps))
 }
 
 /// [`densify`] for patches of side `N` (`grid.size`).
@@ -45,12 +44,10 @@ fn densify_n<const N: usize>(
     grid: &Grid<'_>,
     h: usize,
     outlier_per_grey: f32,
-    pool: &Pool,
     flows: &Pool<[f32; 2]>,
     taps: &mut Vec<Tap>,
 ) -> Lent<[f32; 2]> {
     let (xs, ys, size) = (grid.xs, grid.ys, N);
-    // Sums of weight, weight·u and weight·v in separate planes (element-wise loops).
     // Each patch's bilinear taps, computed once (every row of the patch reuses them).
     refill(
         taps,
@@ -62,11 +59,15 @@ fn densify_n<const N: usize>(
     );
     let (taps, data) = (&*taps, &*i1.data);
     let kappa = f32x4::splat(outlier_per_grey);
-    let mut sums = pool.zeroed(3 * w * h);
-    sums.par_chunks_mut(3 * w)
-        .enumerate()
-        .for_each(|(y, chunk)| {
-            let (sw, rest) = chunk.split_at_mut(w);
+    // Each output row sums weight, weight·u and weight·v over its patches in a row of
+    // three planes of its own (element-wise loops), then divides into the flow: no plane
+    // of sums, so nothing to zero-fill or fault in at the image's size.
+    let mut flow = flows.scratch(w * h);
+    flow.par_chunks_mut(w).enumerate().for_each_init(
+        || vec![0.0f32; 3 * w],
+        |sums, (y, out)| {
+            sums.fill(0.0);
+            let (sw, rest) = sums.split_at_mut(w);
             let (su, sv) = rest.split_at_mut(w);
             // All three rows cut to `w`: one bounds check serves them all.
             let (sw, su, sv) = (&mut sw[..w], &mut su[..w], &mut sv[..w]);
@@ -105,18 +106,11 @@ fn densify_n<const N: usize>(
                     }
                 }
             }
-        });
-    let mut flow = flows.scratch(w * h);
-    flow.par_chunks_mut(w)
-        .zip(sums.par_chunks(3 * w))
-        .for_each(|(out, chunk)| {
-            let (sw, rest) = chunk.split_at(w);
-            let (su, sv) = rest.split_at(w);
-            for (((o, &wt), &u), &v) in out.iter_mut().zip(sw).zip(su).zip(sv) {
+            for (((o, &wt), &u), &v) in out.iter_mut().zip(&*sw).zip(&*su).zip(&*sv) {
                 let inv = if wt > 0.0 { 1.0 / wt } else { 0.0 };
                 *o = [u * inv, v * inv];
             }
-        });
-    pool.put(sums);
+        },
+    );
     flow
 }

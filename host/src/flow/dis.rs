@@ -47,7 +47,7 @@ use super::pyramid::{
     Padded, Plane, Tap, downsample, downsample_luma, gradients, luma_plane, upsample_flow,
 };
 use super::search::{
-    Grid, MAX_CANDIDATES, PatchFlow, SearchScratch, SearchSettings, Template, positions,
+    Grid, MAX_CANDIDATES, PatchFlow, SearchScratch, SearchSettings, Template, positions, reserve,
     search_level,
 };
 use super::variational::{RefineInput, RefineSettings, Warpable, refine};
@@ -295,8 +295,10 @@ pub struct DisFlow {
 }
 
 /// The buffers of an estimate that are not planes: the patch grid, the search's and the
-/// densification's per-patch values, the boundary selection's change lists. Each grows to
-/// its largest use in the first estimate and is reused by the later ones.
+/// densification's per-patch values, the boundary selection's change lists. The per-patch
+/// ones are sized for the estimate's finest grid before its coarsest level
+/// ([`Scratch::reserve`]); each grows to its largest use in the first estimate and is reused
+/// by the later ones.
 #[derive(Debug, Default)]
 struct Scratch {
     xs: Vec<usize>,
@@ -305,6 +307,20 @@ struct Scratch {
     patches: Vec<PatchFlow>,
     taps: Vec<Tap>,
     changes: RowChanges,
+}
+
+impl Scratch {
+    /// Room in every per-patch buffer for the grid of a `w x h` level, the largest an
+    /// estimate searches ([`SearchScratch::reserve`]); `p` and `stride` are the patch side
+    /// and spacing.
+    fn reserve(&mut self, (w, h): (usize, usize), p: usize, stride: usize) {
+        positions(w, p, stride, &mut self.xs);
+        positions(h, p, stride, &mut self.ys);
+        let patches = self.xs.len() * self.ys.len();
+        self.search.reserve(patches);
+        reserve(&mut self.patches, patches);
+        reserve(&mut self.taps, patches);
+    }
 }
 
 impl DisFlow {
@@ -471,6 +487,17 @@ impl DisFlow {
         // levels serve the finer ones again (one-shot: 4776 -> 3951 page faults).
         pool.reserve_room(w * h);
         self.flows.reserve_room(w * h);
+        // The finest search: at full resolution with a level or a polish there.
+        let searched = if finest == 0 || polish {
+            0
+        } else {
+            finest.max(1)
+        };
+        scratch.reserve(
+            (w >> searched, h >> searched),
+            prm.patch_size_px,
+            prm.patch_stride_px,
+        );
         // A step at full resolution (a level there, a polish, the motion-boundary
         // selection) needs RGB input's luma there: made once, and level 1 is downsampled
         // from it (the values `downsample_luma` gives, bit for bit).
@@ -636,7 +663,6 @@ impl DisFlow {
             &grid,
             h,
             prm.densify_outlier_per_grey,
-            pool,
             &self.flows,
             taps,
         );

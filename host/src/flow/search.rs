@@ -87,11 +87,29 @@ pub(crate) struct SearchScratch {
     state_t: Vec<State>,
 }
 
+impl SearchScratch {
+    /// Room for `patches` patches in every buffer (their contents are dropped). Reserved
+    /// for the finest grid before the coarsest level, each buffer is allocated once
+    /// instead of once per level: the coarser levels' allocations would be faulted in and
+    /// then left behind.
+    pub(crate) fn reserve(&mut self, patches: usize) {
+        reserve(&mut self.models, patches);
+        reserve(&mut self.models_t, patches);
+        reserve(&mut self.state, patches);
+        reserve(&mut self.state_t, patches);
+    }
+}
+
+/// `v` emptied, with room for `len` values.
+pub(crate) fn reserve<T>(v: &mut Vec<T>, len: usize) {
+    v.clear();
+    v.reserve(len);
+}
+
 /// `out` made to hold exactly `items` (`len` of them): grown at most once, to that length,
 /// and never by the copies of repeated doubling (each copy faults in fresh pages).
 pub(crate) fn refill<T>(out: &mut Vec<T>, len: usize, items: impl Iterator<Item = T>) {
-    out.clear();
-    out.reserve(len);
+    reserve(out, len);
     out.extend(items);
 }
 

@@ -226,11 +226,29 @@ impl<'a> Planes<'a> {
     }
 }
 
-/// Refines `flow` (`w x h`, row-major) in place. With `flows` (at the pyramid levels) the
-/// flow and system planes come from that pool (see the comment in the body).
+/// Where [`refine`] keeps the smoothness weights.
+enum Weights {
+    /// A buffer of the plane pool.
+    Values(Lent<f32>),
+    /// The flow's own buffer, lent back by the flow pool (at the pyramid levels).
+    Pairs(Lent<[f32; 2]>),
+}
+
+impl Weights {
+    fn values(&mut self) -> &mut [f32] {
+        match self {
+            Self::Values(v) => v,
+            Self::Pairs(p) => bytemuck::cast_slice_mut(&mut p[..]),
+        }
+    }
+}
+
+/// Refines `flow` (`w x h`, row-major). With `flows` (at the pyramid levels) the flow and
+/// system planes come from that pool, and the refined flow may come back in another of its
+/// buffers (see the comments in the body); without, it is refined in place.
 pub(crate) fn refine(
     inp: RefineInput<'_>,
-    flow: &mut [[f32; 2]],
+    flow: &mut Lent<[f32; 2]>,
     s: &RefineSettings,
     pool: &Pool,
     flows: Option<&Pool<[f32; 2]>>,
@@ -269,7 +287,7 @@ pub(crate) fn refine(
     let (mut sys, _) = Planes::pair(&sp, 5, sys_values);
     // The increments' and the weights' values, made after the first warp: the increment
     // is zero until the first solve (and `scatter` adds that zero to the flow).
-    let mut late: Option<[Lent<f32>; 2]> = None;
+    let mut late: Option<(Lent<f32>, Weights)> = None;
     for (c, uvc) in uv.iter_mut().enumerate() {
         scatter(&sp, c, flow, uvc);
     }
@@ -286,7 +304,7 @@ pub(crate) fn refine(
         .map(|values| Planes::pair(&sp, 2, values).0);
     let mut warp_input = Some(inp);
     for iter in 0..s.fixed_point_iters {
-        if let Some([duv_values, _]) = &mut late {
+        if let Some((duv_values, _)) = &mut late {
             let (mut duv, _) = Planes::pair(&sp, 2, duv_values);
             for (uvc, dc) in uv.iter_mut().zip(duv.iter_mut()) {
                 absorb(uvc, dc);
@@ -302,10 +320,23 @@ pub(crate) fn refine(
         {
             inp.recycle(pool);
         }
-        let [duv_values, wts_values] =
-            late.get_or_insert_with(|| [0, 1].map(|_| pool.zeroed(2 * sp.len(2))));
+        let (duv_values, wts_values) = late.get_or_insert_with(|| {
+            let duv = pool.zeroed(2 * sp.len(2));
+            let wts = match flows {
+                // From `scatter` to `gather` the flow's values live in the planes: its
+                // buffer holds the weights meanwhile, instead of a plane-pool buffer
+                // grown for them (one-shot `riseg flow` MEDIUM, 640x480: 2530 -> 2453
+                // page faults).
+                Some(f) => {
+                    f.put(core::mem::take(flow));
+                    Weights::Pairs(f.zeroed(sp.len(2)))
+                }
+                None => Weights::Values(pool.zeroed(2 * sp.len(2))),
+            };
+            (duv, wts)
+        });
         let (duv, _) = &mut Planes::pair(&sp, 2, duv_values);
-        let (wts, _) = &mut Planes::pair(&sp, 2, wts_values);
+        let (wts, _) = &mut Planes::pair(&sp, 2, wts_values.values());
         for (c, wc) in wts.iter_mut().enumerate() {
             smoothness(&sp, c, &uv, duv, wc, s.alpha);
             if let Some(e) = &edges {
@@ -324,17 +355,24 @@ pub(crate) fn refine(
         }
     }
     // Made in the first iteration: `fixed_point_iters > 0`.
-    if let Some([duv_values, _]) = &mut late {
-        gather(&sp, &uv, &Planes::pair(&sp, 2, duv_values).0, flow);
+    if let Some((mut duv_values, wts_values)) = late {
+        match wts_values {
+            // The weights' buffer (or another of the flow pool) takes the flow back.
+            Weights::Pairs(values) => {
+                if let Some(f) = flows {
+                    f.put(values);
+                    *flow = f.scratch(sp.w * sp.h);
+                }
+            }
+            Weights::Values(values) => pool.put(values),
+        }
+        gather(&sp, &uv, &Planes::pair(&sp, 2, &mut duv_values).0, flow);
+        pool.put(duv_values);
     }
     if let (Some(f), Some(values)) = (flows, front_pairs) {
         f.put(values);
     }
-    for values in front_values
-        .into_iter()
-        .chain(late.into_iter().flatten())
-        .chain(edge_values)
-    {
+    for values in front_values.into_iter().chain(edge_values) {
         pool.put(values);
     }
 }
@@ -717,6 +755,13 @@ mod tests {
         assert!(second.quad(last + 1).is_none());
     }
 
+    /// `flow` in a buffer of a pool of its own.
+    fn lent(flow: &[[f32; 2]]) -> Lent<[f32; 2]> {
+        let mut v = Pool::default().scratch(flow.len());
+        v.copy_from_slice(flow);
+        v
+    }
+
     /// A refinement input whose two images are both `i` (`w x h`).
     fn same_images<'a>(i: &'a [f32], (w, h): (usize, usize), pool: &Pool) -> RefineInput<'a> {
         let (gx0, gy0) = super::super::pyramid::gradients(i, w, h, pool);
@@ -741,7 +786,7 @@ mod tests {
             .collect();
         let pool = Pool::default();
         let step = |edge_grey: f32| {
-            let mut flow: Vec<[f32; 2]> = (0..w * h)
+            let flow: Vec<[f32; 2]> = (0..w * h)
                 .map(|i| [if i % w < 8 { 0.0 } else { 1.0 }, 0.0])
                 .collect();
             let s = RefineSettings {
@@ -752,6 +797,7 @@ mod tests {
                 delta: 0.0,
                 edge_grey,
             };
+            let mut flow = lent(&flow);
             refine(same_images(&i0, (w, h), &pool), &mut flow, &s, &pool, None);
             flow[w + 8][0] - flow[w + 7][0]
         };
@@ -763,9 +809,10 @@ mod tests {
     #[test]
     fn planes_come_from_the_flow_pool_only_when_it_is_given() {
         // With the flow pool, the flow and system planes are one of its buffers, given
-        // back holding the last values (not zeros); without it, the flow pool is not used.
-        // Either way the refined flow is the same, also when the pools hold buffers of
-        // NaN (a value read before it is written would show).
+        // back holding the last values (not zeros), and the weights live in the flow's
+        // buffer; without it, the flow pool is not used. Either way the refined flow is
+        // the same, also when the pools hold buffers of NaN (a value read before it is
+        // written would show).
         let (w, h) = (12, 9);
         let i: Vec<f32> = (0..w * h).map(|k| ((k * 29) % 13) as f32 * 9.0).collect();
         let s = RefineSettings {
@@ -780,7 +827,7 @@ mod tests {
         let pairs = (2 * sp.len(2) + 2 * sp.len(5)).div_ceil(2);
         let refined = [false, true].map(|given| {
             let (pool, flows) = (Pool::default(), Pool::default());
-            let mut flow = vec![[0.75f32, -0.5]; w * h];
+            let mut flow = lent(&vec![[0.75f32, -0.5]; w * h]);
             let inp = same_images(&i, (w, h), &pool);
             let mut nan = pool.scratch(2 * pairs);
             nan.fill(f32::NAN);
@@ -809,7 +856,7 @@ mod tests {
         let (w, h) = (6, 5);
         let flat = vec![7.0f32; w * h];
         let pool = Pool::default();
-        let mut flow = vec![[0.5f32, -1.25]; w * h];
+        let mut flow = lent(&vec![[0.5f32, -1.25]; w * h]);
         let s = RefineSettings {
             fixed_point_iters: 2,
             sor_iters: 3,
@@ -825,7 +872,7 @@ mod tests {
             &pool,
             None,
         );
-        for v in &flow {
+        for v in flow.iter() {
             assert!(
                 (v[0] - 0.5).abs() < 1e-6 && (v[1] + 1.25).abs() < 1e-6,
                 "{v:?}"

@@ -897,6 +897,71 @@ mod tests {
             .collect()
     }
 
+    /// FNV-1a 64 over the little-endian bytes of [`bits`].
+    fn digest(f: &FlowImage) -> u64 {
+        bits(f)
+            .iter()
+            .flat_map(|b| b.to_le_bytes())
+            .fold(0xcbf2_9ce4_8422_2325, |h, byte| {
+                (h ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3)
+            })
+    }
+
+    #[test]
+    fn flows_are_the_recorded_ones_bit_for_bit() {
+        // Digests of the flow of every preset, a run down to full resolution and an
+        // edge-aware refinement, recorded from the estimator of 880b016. The speed work
+        // must keep every output bit (`riseg flow`'s .flo files above all): a change here
+        // needs a reason, a change of the flow asked for. To refresh them after such a
+        // change, run this test and copy the `got` array it prints into `want`.
+        // 163x121 runs levels 2 and 1 (ULTRAFAST level 2 only); 17x19 runs level 1 alone,
+        // 8x9 with one patch: the pyramid refinement (planes from the flow pool) at about
+        // the smallest size it gets.
+        let variants = [
+            FlowParams::ULTRAFAST,
+            FlowParams::FAST,
+            FlowParams::MEDIUM,
+            FlowParams::FINE,
+            FlowParams {
+                finest_level: 0,
+                ..FlowParams::MEDIUM
+            },
+            FlowParams {
+                smoothness_edge_grey: 10.0,
+                ..FlowParams::FINE
+            },
+        ];
+        let want: [[u64; 6]; 2] = [
+            [
+                0xee4d_222b_96eb_552a,
+                0x3f5c_2e07_ba32_593b,
+                0xcc83_c23e_42d6_98cb,
+                0xcfe7_cead_a625_a64a,
+                0x570d_fe7f_0c1b_41fe,
+                0x87b5_9ab7_1efb_29f1,
+            ],
+            [
+                0x8d65_0910_bb39_fa45,
+                0x3f1e_8ed3_24fa_343e,
+                0xf3dc_3bf1_1315_4e6a,
+                0x27cb_e3ef_e39f_a7fd,
+                0xd628_ad78_476a_a788,
+                0xd432_81df_dd1a_1b54,
+            ],
+        ];
+        let got = [(163, 121), (17, 19)].map(|(w, h)| {
+            let p = translated(w, h, 5, [2.5, -1.25]);
+            variants.map(|params| {
+                let f = DisFlow::new(params)
+                    .unwrap()
+                    .estimate(p.first_view(), p.second_view())
+                    .unwrap();
+                digest(&f)
+            })
+        });
+        assert!(got == want, "got {got:#018x?}");
+    }
+
     #[test]
     fn rgb_estimate_is_the_luma_estimate_bit_for_bit() {
         // `estimate` makes pyramid level 1 straight from RGB (no full-resolution luma

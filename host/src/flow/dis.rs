@@ -881,12 +881,15 @@ mod tests {
     #[cfg(feature = "threads")]
     #[test]
     fn thread_count_does_not_change_the_result() {
+        // FAST refines twice per level, MEDIUM selects at motion boundaries, FINE polishes
+        // at full resolution.
         let p = FlowScene::random_objects(320, 240, 3).render();
-        let one = medium().with_threads(1).unwrap();
-        let three = medium().with_threads(3).unwrap();
-        let a = one.estimate(p.first_view(), p.second_view()).unwrap();
-        let b = three.estimate(p.first_view(), p.second_view()).unwrap();
-        assert_eq!(bits(&a), bits(&b));
+        for params in [FlowParams::FAST, FlowParams::MEDIUM, FlowParams::FINE] {
+            let est = |threads| DisFlow::new(params).unwrap().with_threads(threads).unwrap();
+            let a = est(1).estimate(p.first_view(), p.second_view()).unwrap();
+            let b = est(3).estimate(p.first_view(), p.second_view()).unwrap();
+            assert_eq!(bits(&a), bits(&b), "{params:?}");
+        }
     }
 
     /// The bits of every flow component, row-major.

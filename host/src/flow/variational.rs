@@ -227,18 +227,19 @@ impl<'a> Planes<'a> {
 }
 
 /// Where [`refine`] keeps the smoothness weights.
-enum Weights {
+enum Weights<'p> {
     /// A buffer of the plane pool.
     Values(Lent<f32>),
-    /// The flow's own buffer, lent back by the flow pool (at the pyramid levels).
-    Pairs(Lent<[f32; 2]>),
+    /// A buffer of the flow pool (at the pyramid levels), with that pool, which lends the
+    /// refined flow when the weights go back to it.
+    Pairs(Lent<[f32; 2]>, &'p Pool<[f32; 2]>),
 }
 
-impl Weights {
+impl Weights<'_> {
     fn values(&mut self) -> &mut [f32] {
         match self {
             Self::Values(v) => v,
-            Self::Pairs(p) => bytemuck::cast_slice_mut(&mut p[..]),
+            Self::Pairs(p, _) => bytemuck::cast_slice_mut(&mut p[..]),
         }
     }
 }
@@ -287,7 +288,7 @@ pub(crate) fn refine(
     let (mut sys, _) = Planes::pair(&sp, 5, sys_values);
     // The increments' and the weights' values, made after the first warp: the increment
     // is zero until the first solve (and `scatter` adds that zero to the flow).
-    let mut late: Option<(Lent<f32>, Weights)> = None;
+    let mut late: Option<(Lent<f32>, Weights<'_>)> = None;
     for (c, uvc) in uv.iter_mut().enumerate() {
         scatter(&sp, c, flow, uvc);
     }
@@ -329,7 +330,7 @@ pub(crate) fn refine(
                 // page faults).
                 Some(f) => {
                     f.put(core::mem::take(flow));
-                    Weights::Pairs(f.zeroed(sp.len(2)))
+                    Weights::Pairs(f.zeroed(sp.len(2)), f)
                 }
                 None => Weights::Values(pool.zeroed(2 * sp.len(2))),
             };
@@ -358,11 +359,9 @@ pub(crate) fn refine(
     if let Some((mut duv_values, wts_values)) = late {
         match wts_values {
             // The weights' buffer (or another of the flow pool) takes the flow back.
-            Weights::Pairs(values) => {
-                if let Some(f) = flows {
-                    f.put(values);
-                    *flow = f.scratch(sp.w * sp.h);
-                }
+            Weights::Pairs(values, f) => {
+                f.put(values);
+                *flow = f.scratch(sp.w * sp.h);
             }
             Weights::Values(values) => pool.put(values),
         }

@@ -720,8 +720,9 @@ struct LevelStep {
     anchor: f32,
     /// The motion hint's candidates in pixels of this level ([`hint_candidates`]).
     candidates: (usize, [[f32; 2]; MAX_CANDIDATES]),
-    /// A pyramid level, not full resolution: the refinement's planes come from the flow
-    /// pool, for the full-resolution flow made after the last level to reuse.
+    /// A pyramid level, not full resolution: the refinement's flow and system planes
+    /// come from the flow pool, for the full-resolution flow made after the last level to
+    /// reuse, and so do its smoothness weights (while the flow's values are in the planes).
     pyramid: bool,
 }
 

@@ -50,8 +50,10 @@ const EPS_SMOOTH: f32 = 0.05;
 
 /// The level's images the refinement reads. The buffers are lent to it: only the warps
 /// read the gradients and the second image, and after the last one the refinement gives
-/// them back to the pool, so that the buffers it makes then (the smoothness weights) reuse
-/// their pages.
+/// them back to the pool. With one fixed-point iteration the buffers it makes after the
+/// first warp (the increments, and at full resolution the smoothness weights) reuse their
+/// pages; with more, those are made before the last warp and later requests to the pool
+/// reuse them.
 pub(crate) struct RefineInput<'a> {
     pub w: usize,
     pub h: usize,
@@ -230,8 +232,9 @@ impl<'a> Planes<'a> {
 enum Weights<'p> {
     /// A buffer of the plane pool.
     Values(Lent<f32>),
-    /// A buffer of the flow pool (at the pyramid levels), with that pool, which lends the
-    /// refined flow when the weights go back to it.
+    /// A buffer of the flow pool (at the pyramid levels; the flow's, given back just
+    /// before, is among the candidates), with that pool, which lends the refined flow when
+    /// the weights go back to it.
     Pairs(Lent<[f32; 2]>, &'p Pool<[f32; 2]>),
 }
 
@@ -245,8 +248,9 @@ impl Weights<'_> {
 }
 
 /// Refines `flow` (`w x h`, row-major). With `flows` (at the pyramid levels) the flow and
-/// system planes come from that pool, and the refined flow may come back in another of its
-/// buffers (see the comments in the body); without, it is refined in place.
+/// system planes and the smoothness weights come from that pool, and the refined flow may
+/// come back in another of its buffers (see the comments in the body); without, it is
+/// refined in place.
 pub(crate) fn refine(
     inp: RefineInput<'_>,
     flow: &mut Lent<[f32; 2]>,
@@ -265,7 +269,8 @@ pub(crate) fn refine(
     // each pixel's into its equations (one buffer less to fault in: one-shot `riseg flow`,
     // 230 pages at level 1). Neighbour reads reach the guards of the flow, increment and
     // weight planes, so those start zeroed; the system is only read where written. The
-    // weights are made after the last warp has given its inputs back.
+    // increments and weights are made after the first warp (with one iteration, after the
+    // last warp has given its inputs back, whose buffers they may then reuse).
     // The flow and system planes of both colours share one buffer. At the pyramid levels
     // it comes from the flow pool: the full-resolution flow made after the last level
     // then takes it with its pages already faulted in (one-shot `riseg flow` MEDIUM, 640x480:
@@ -325,9 +330,10 @@ pub(crate) fn refine(
             let duv = pool.zeroed(2 * sp.len(2));
             let wts = match flows {
                 // From `scatter` to `gather` the flow's values live in the planes: its
-                // buffer holds the weights meanwhile, instead of a plane-pool buffer
-                // grown for them (one-shot `riseg flow` MEDIUM, 640x480: 2530 -> 2453
-                // page faults).
+                // buffer goes back to the flow pool, and the weights take a buffer of
+                // that pool (the flow's is among the candidates; `Pool::take` picks)
+                // instead of a plane-pool buffer grown for them (one-shot `riseg flow`
+                // MEDIUM, 640x480: 2530 -> 2453 page faults).
                 Some(f) => {
                     f.put(core::mem::take(flow));
                     Weights::Pairs(f.zeroed(sp.len(2)), f)
@@ -358,7 +364,8 @@ pub(crate) fn refine(
     // Made in the first iteration: `fixed_point_iters > 0`.
     if let Some((mut duv_values, wts_values)) = late {
         match wts_values {
-            // The weights' buffer (or another of the flow pool) takes the flow back.
+            // The flow pool takes the weights back and lends the refined flow (in their
+            // buffer or another of its own).
             Weights::Pairs(values, f) => {
                 f.put(values);
                 *flow = f.scratch(sp.w * sp.h);

@@ -47,8 +47,8 @@ use super::pyramid::{
     Padded, Plane, Tap, downsample, downsample_luma, gradients, luma_plane, upsample_flow,
 };
 use super::search::{
-    Grid, MAX_CANDIDATES, PatchFlow, SearchScratch, SearchSettings, Template, positions, reserve,
-    search_level,
+    Grid, MAX_CANDIDATES, PatchFlow, SearchScratch, SearchSettings, Template, clear_with_room,
+    positions, search_level,
 };
 use super::variational::{RefineInput, RefineSettings, Warpable, refine};
 use riseg_core::ImageView;
@@ -318,8 +318,8 @@ impl Scratch {
         positions(h, p, stride, &mut self.ys);
         let patches = self.xs.len() * self.ys.len();
         self.search.reserve(patches);
-        reserve(&mut self.patches, patches);
-        reserve(&mut self.taps, patches);
+        clear_with_room(&mut self.patches, patches);
+        clear_with_room(&mut self.taps, patches);
     }
 }
 

@@ -487,12 +487,10 @@ impl DisFlow {
         // levels serve the finer ones again (one-shot: 4776 -> 3951 page faults).
         pool.reserve_room(w * h);
         self.flows.reserve_room(w * h);
-        // The finest search: at full resolution with a level or a polish there.
-        let searched = if finest == 0 || polish {
-            0
-        } else {
-            finest.max(1)
-        };
+        // A level or a polish searches at full resolution; else level `finest` is the
+        // finest searched.
+        let full_search = finest == 0 || polish;
+        let searched = if full_search { 0 } else { finest };
         scratch.reserve(
             (w >> searched, h >> searched),
             prm.patch_size_px,
@@ -501,7 +499,7 @@ impl DisFlow {
         // A step at full resolution (a level there, a polish, the motion-boundary
         // selection) needs RGB input's luma there: made once, and level 1 is downsampled
         // from it (the values `downsample_luma` gives, bit for bit).
-        let at_full = finest == 0 || polish || prm.boundary_passes > 0;
+        let at_full = full_search || prm.boundary_passes > 0;
         let rgb_luma = match base {
             Base::Rgb(images) if at_full => Some(images.map(|i| luma_plane(i, pool))),
             _ => None,
@@ -568,18 +566,20 @@ impl DisFlow {
             upsample_flow(&flow, fw, fh, w, h, 1 << fl, &self.flows)
         };
         self.flows.put(core::mem::replace(&mut flow, full));
-        let full_step = if finest == 0 {
-            Some(self.level_step(0, coarsest, hint_px))
-        } else {
-            polish.then(|| LevelStep {
-                gd_iters: prm.polish_gd_iters,
-                propagation: false,
-                variational_iters: prm.polish_variational_iters,
-                anchor: 0.0,
-                candidates: hint_candidates(None, 1.0),
-                pyramid: false,
-            })
-        };
+        let full_step = full_search.then(|| {
+            if finest == 0 {
+                self.level_step(0, coarsest, hint_px)
+            } else {
+                LevelStep {
+                    gd_iters: prm.polish_gd_iters,
+                    propagation: false,
+                    variational_iters: prm.polish_variational_iters,
+                    anchor: 0.0,
+                    candidates: hint_candidates(None, 1.0),
+                    pyramid: false,
+                }
+            }
+        });
         if let (true, Base::Gray([first, second])) = (at_full, base) {
             if let Some(step) = full_step {
                 self.level(first, second, w, h, &mut flow, &step, &mut scratch);

@@ -768,16 +768,21 @@ mod tests {
         v
     }
 
-    /// A refinement input whose two images are both `i` (`w x h`).
-    fn same_images<'a>(i: &'a [f32], (w, h): (usize, usize), pool: &Pool) -> RefineInput<'a> {
-        let (gx0, gy0) = super::super::pyramid::gradients(i, w, h, pool);
+    /// A refinement input of the images `i0` and `i1` (`w x h`).
+    fn images<'a>(
+        i0: &'a [f32],
+        i1: &[f32],
+        (w, h): (usize, usize),
+        pool: &Pool,
+    ) -> RefineInput<'a> {
+        let (gx0, gy0) = super::super::pyramid::gradients(i0, w, h, pool);
         RefineInput {
             w,
             h,
-            i0: i,
+            i0,
             gx0,
             gy0,
-            second: Warpable::new(i, (w, h), pool),
+            second: Warpable::new(i1, (w, h), pool),
         }
     }
 
@@ -804,7 +809,7 @@ mod tests {
                 edge_grey,
             };
             let mut flow = lent(&flow);
-            refine(same_images(&i0, (w, h), &pool), &mut flow, &s, &pool, None);
+            refine(images(&i0, &i0, (w, h), &pool), &mut flow, &s, &pool, None);
             flow[w + 8][0] - flow[w + 7][0]
         };
         let (uniform, aware) = (step(0.0), step(10.0));
@@ -814,46 +819,74 @@ mod tests {
 
     #[test]
     fn planes_come_from_the_flow_pool_only_when_it_is_given() {
-        // With the flow pool, the flow and system planes are one of its buffers, given
-        // back holding the last values (not zeros), and the weights live in the flow's
-        // buffer; without it, the flow pool is not used. Either way the refined flow is
-        // the same, also when the pools hold buffers of NaN (a value read before it is
-        // written would show).
-        let (w, h) = (12, 9);
-        let i: Vec<f32> = (0..w * h).map(|k| ((k * 29) % 13) as f32 * 9.0).collect();
-        let s = RefineSettings {
-            fixed_point_iters: 1,
-            sor_iters: 2,
-            sor_omega: 1.6,
-            alpha: 20.0,
-            delta: 5.0,
-            edge_grey: 0.0,
-        };
-        let sp = Split::new(w, h);
-        let pairs = (2 * sp.len(2) + 2 * sp.len(5)).div_ceil(2);
-        let refined = [false, true].map(|given| {
-            let (pool, flows) = (Pool::default(), Pool::default());
-            let mut flow = lent(&vec![[0.75f32, -0.5]; w * h]);
-            let inp = same_images(&i, (w, h), &pool);
-            let mut nan = pool.scratch(2 * pairs);
-            nan.fill(f32::NAN);
-            pool.put(nan);
-            let mut nan = flows.scratch(pairs);
-            nan.fill([f32::NAN; 2]);
-            flows.put(nan);
-            refine(inp, &mut flow, &s, &pool, given.then_some(&flows));
-            let kept = flows.scratch(pairs);
-            let written = kept.iter().flatten().any(|v| !v.is_nan());
-            assert_eq!(written, given, "{given}");
-            flow.iter().map(|f| f.map(f32::to_bits)).collect::<Vec<_>>()
-        });
-        assert_eq!(refined[0], refined[1]);
-        assert!(
-            refined[0]
-                .iter()
-                .flatten()
-                .all(|&b| f32::from_bits(b).is_finite())
-        );
+        // With the flow pool, the flow and system planes and the weights are its buffers,
+        // given back holding their last values (not zeros), and the flow may come back in
+        // another of its buffers; without it, the flow pool is not used. Either way the
+        // refined flow is the same, also when the pools hold buffers of NaN (a value read
+        // before it is written would show): odd and even sizes, one and two iterations
+        // (the second warps after the weights are made), with and without edge factors.
+        // With one spare buffer in the flow pool the planes take it and the weights take
+        // the flow's buffer; with two, `Pool::take` picks the other spare or the flow's.
+        for (w, h) in [(12, 9), (13, 8), (3, 5)] {
+            let i0: Vec<f32> = (0..w * h).map(|k| ((k * 29) % 13) as f32 * 9.0).collect();
+            let i1: Vec<f32> = (0..w * h).map(|k| ((k * 17) % 11) as f32 * 10.0).collect();
+            let sp = Split::new(w, h);
+            let pairs = (2 * sp.len(2) + 2 * sp.len(5)).div_ceil(2);
+            for (fixed_point_iters, edge_grey, spares) in [1, 2]
+                .into_iter()
+                .flat_map(|i| [(i, 0.0), (i, 10.0)])
+                .flat_map(|(i, e)| [(i, e, 1), (i, e, 2)])
+            {
+                let s = RefineSettings {
+                    fixed_point_iters,
+                    sor_iters: 2,
+                    sor_omega: 1.6,
+                    alpha: 20.0,
+                    delta: 5.0,
+                    edge_grey,
+                };
+                let case = format!(
+                    "{w}x{h}, {fixed_point_iters} iterations, edge {edge_grey}, {spares} spares"
+                );
+                let refined = [false, true].map(|given| {
+                    let (pool, flows) = (Pool::default(), Pool::default());
+                    // As at a pyramid level: every fresh buffer has room for the planes.
+                    flows.reserve_room(pairs);
+                    let nan_buffer = || {
+                        let mut nan = flows.scratch(pairs);
+                        nan.fill([f32::NAN; 2]);
+                        nan
+                    };
+                    // The flow in a buffer of NaN past its `w x h` values.
+                    flows.put(nan_buffer());
+                    let mut flow = flows.scratch(w * h);
+                    for (k, f) in flow.iter_mut().enumerate() {
+                        *f = [(k % 7) as f32 * 0.25 - 0.75, (k % 5) as f32 * -0.5 + 1.0];
+                    }
+                    let inp = images(&i0, &i1, (w, h), &pool);
+                    let mut nan = pool.scratch(2 * pairs);
+                    nan.fill(f32::NAN);
+                    pool.put(nan);
+                    let nans: Vec<_> = (0..spares).map(|_| nan_buffer()).collect();
+                    for nan in nans {
+                        flows.put(nan);
+                    }
+                    refine(inp, &mut flow, &s, &pool, given.then_some(&flows));
+                    let kept: Vec<_> = (0..spares).map(|_| flows.scratch(pairs)).collect();
+                    let mut written = kept.iter().flat_map(|k| k.iter().flatten());
+                    assert_eq!(written.any(|v| !v.is_nan()), given, "{case}: {given}");
+                    flow.iter().map(|f| f.map(f32::to_bits)).collect::<Vec<_>>()
+                });
+                assert_eq!(refined[0], refined[1], "{case}");
+                assert!(
+                    refined[0]
+                        .iter()
+                        .flatten()
+                        .all(|&b| f32::from_bits(b).is_finite()),
+                    "{case}"
+                );
+            }
+        }
     }
 
     #[test]
@@ -872,7 +905,7 @@ mod tests {
             edge_grey: 0.0,
         };
         refine(
-            same_images(&flat, (w, h), &pool),
+            images(&flat, &flat, (w, h), &pool),
             &mut flow,
             &s,
             &pool,

@@ -47,8 +47,8 @@ use super::pyramid::{
     Padded, Plane, Tap, downsample, downsample_luma, gradients, luma_plane, upsample_flow,
 };
 use super::search::{
-    Grid, MAX_CANDIDATES, PatchFlow, SearchScratch, SearchSettings, Template, positions, reserve,
-    search_level,
+    Grid, MAX_CANDIDATES, PatchFlow, SearchScratch, SearchSettings, Template, clear_with_room,
+    positions, search_level,
 };
 use super::variational::{RefineInput, RefineSettings, Warpable, refine};
 use riseg_core::ImageView;
@@ -318,8 +318,8 @@ impl Scratch {
         positions(h, p, stride, &mut self.ys);
         let patches = self.xs.len() * self.ys.len();
         self.search.reserve(patches);
-        reserve(&mut self.patches, patches);
-        reserve(&mut self.taps, patches);
+        clear_with_room(&mut self.patches, patches);
+        clear_with_room(&mut self.taps, patches);
     }
 }
 
@@ -487,12 +487,10 @@ impl DisFlow {
         // levels serve the finer ones again (one-shot: 4776 -> 3951 page faults).
         pool.reserve_room(w * h);
         self.flows.reserve_room(w * h);
-        // The finest search: at full resolution with a level or a polish there.
-        let searched = if finest == 0 || polish {
-            0
-        } else {
-            finest.max(1)
-        };
+        // A level or a polish searches at full resolution; else level `finest` is the
+        // finest searched.
+        let full_search = finest == 0 || polish;
+        let searched = if full_search { 0 } else { finest };
         scratch.reserve(
             (w >> searched, h >> searched),
             prm.patch_size_px,
@@ -501,7 +499,7 @@ impl DisFlow {
         // A step at full resolution (a level there, a polish, the motion-boundary
         // selection) needs RGB input's luma there: made once, and level 1 is downsampled
         // from it (the values `downsample_luma` gives, bit for bit).
-        let at_full = finest == 0 || polish || prm.boundary_passes > 0;
+        let at_full = full_search || prm.boundary_passes > 0;
         let rgb_luma = match base {
             Base::Rgb(images) if at_full => Some(images.map(|i| luma_plane(i, pool))),
             _ => None,
@@ -568,18 +566,20 @@ impl DisFlow {
             upsample_flow(&flow, fw, fh, w, h, 1 << fl, &self.flows)
         };
         self.flows.put(core::mem::replace(&mut flow, full));
-        let full_step = if finest == 0 {
-            Some(self.level_step(0, coarsest, hint_px))
-        } else {
-            polish.then(|| LevelStep {
-                gd_iters: prm.polish_gd_iters,
-                propagation: false,
-                variational_iters: prm.polish_variational_iters,
-                anchor: 0.0,
-                candidates: hint_candidates(None, 1.0),
-                pyramid: false,
-            })
-        };
+        let full_step = full_search.then(|| {
+            if finest == 0 {
+                self.level_step(0, coarsest, hint_px)
+            } else {
+                LevelStep {
+                    gd_iters: prm.polish_gd_iters,
+                    propagation: false,
+                    variational_iters: prm.polish_variational_iters,
+                    anchor: 0.0,
+                    candidates: hint_candidates(None, 1.0),
+                    pyramid: false,
+                }
+            }
+        });
         if let (true, Base::Gray([first, second])) = (at_full, base) {
             if let Some(step) = full_step {
                 self.level(first, second, w, h, &mut flow, &step, &mut scratch);
@@ -720,8 +720,9 @@ struct LevelStep {
     anchor: f32,
     /// The motion hint's candidates in pixels of this level ([`hint_candidates`]).
     candidates: (usize, [[f32; 2]; MAX_CANDIDATES]),
-    /// A pyramid level, not full resolution: the refinement's planes come from the flow
-    /// pool, for the full-resolution flow made after the last level to reuse.
+    /// A pyramid level, not full resolution: the refinement's flow and system planes
+    /// come from the flow pool, for the full-resolution flow made after the last level to
+    /// reuse, and so do its smoothness weights (while the flow's values are in the planes).
     pyramid: bool,
 }
 
@@ -881,12 +882,15 @@ mod tests {
     #[cfg(feature = "threads")]
     #[test]
     fn thread_count_does_not_change_the_result() {
+        // FAST refines twice per level, MEDIUM selects at motion boundaries, FINE polishes
+        // at full resolution.
         let p = FlowScene::random_objects(320, 240, 3).render();
-        let one = medium().with_threads(1).unwrap();
-        let three = medium().with_threads(3).unwrap();
-        let a = one.estimate(p.first_view(), p.second_view()).unwrap();
-        let b = three.estimate(p.first_view(), p.second_view()).unwrap();
-        assert_eq!(bits(&a), bits(&b));
+        for params in [FlowParams::FAST, FlowParams::MEDIUM, FlowParams::FINE] {
+            let est = |threads| DisFlow::new(params).unwrap().with_threads(threads).unwrap();
+            let a = est(1).estimate(p.first_view(), p.second_view()).unwrap();
+            let b = est(3).estimate(p.first_view(), p.second_view()).unwrap();
+            assert_eq!(bits(&a), bits(&b), "{params:?}");
+        }
     }
 
     /// The bits of every flow component, row-major.
@@ -895,6 +899,71 @@ mod tests {
             .iter()
             .flat_map(|v| [v[0].to_bits(), v[1].to_bits()])
             .collect()
+    }
+
+    /// FNV-1a 64 over the little-endian bytes of [`bits`].
+    fn digest(f: &FlowImage) -> u64 {
+        bits(f)
+            .iter()
+            .flat_map(|b| b.to_le_bytes())
+            .fold(0xcbf2_9ce4_8422_2325, |h, byte| {
+                (h ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3)
+            })
+    }
+
+    #[test]
+    fn flows_are_the_recorded_ones_bit_for_bit() {
+        // Digests of the flow of every preset, a run down to full resolution and an
+        // edge-aware refinement, recorded from the estimator of 880b016. The speed work
+        // must keep every output bit (`riseg flow`'s .flo files above all): a change here
+        // needs a reason, a change of the flow asked for. To refresh them after such a
+        // change, run this test and copy the `got` array it prints into `want`.
+        // 163x121 runs levels 2 and 1 (ULTRAFAST level 2 only); 17x19 runs level 1 alone,
+        // 8x9 with one patch: the pyramid refinement (planes from the flow pool) at about
+        // the smallest size it gets.
+        let variants = [
+            FlowParams::ULTRAFAST,
+            FlowParams::FAST,
+            FlowParams::MEDIUM,
+            FlowParams::FINE,
+            FlowParams {
+                finest_level: 0,
+                ..FlowParams::MEDIUM
+            },
+            FlowParams {
+                smoothness_edge_grey: 10.0,
+                ..FlowParams::FINE
+            },
+        ];
+        let want: [[u64; 6]; 2] = [
+            [
+                0xee4d_222b_96eb_552a,
+                0x3f5c_2e07_ba32_593b,
+                0xcc83_c23e_42d6_98cb,
+                0xcfe7_cead_a625_a64a,
+                0x570d_fe7f_0c1b_41fe,
+                0x87b5_9ab7_1efb_29f1,
+            ],
+            [
+                0x8d65_0910_bb39_fa45,
+                0x3f1e_8ed3_24fa_343e,
+                0xf3dc_3bf1_1315_4e6a,
+                0x27cb_e3ef_e39f_a7fd,
+                0xd628_ad78_476a_a788,
+                0xd432_81df_dd1a_1b54,
+            ],
+        ];
+        let got = [(163, 121), (17, 19)].map(|(w, h)| {
+            let p = translated(w, h, 5, [2.5, -1.25]);
+            variants.map(|params| {
+                let f = DisFlow::new(params)
+                    .unwrap()
+                    .estimate(p.first_view(), p.second_view())
+                    .unwrap();
+                digest(&f)
+            })
+        });
+        assert!(got == want, "got {got:#018x?}");
     }
 
     #[test]

@@ -93,23 +93,24 @@ impl SearchScratch {
     /// instead of once per level: the coarser levels' allocations would be faulted in and
     /// then left behind.
     pub(crate) fn reserve(&mut self, patches: usize) {
-        reserve(&mut self.models, patches);
-        reserve(&mut self.models_t, patches);
-        reserve(&mut self.state, patches);
-        reserve(&mut self.state_t, patches);
+        clear_with_room(&mut self.models, patches);
+        clear_with_room(&mut self.models_t, patches);
+        clear_with_room(&mut self.state, patches);
+        clear_with_room(&mut self.state_t, patches);
     }
 }
 
 /// `v` emptied, with room for `len` values.
-pub(crate) fn reserve<T>(v: &mut Vec<T>, len: usize) {
+pub(crate) fn clear_with_room<T>(v: &mut Vec<T>, len: usize) {
     v.clear();
     v.reserve(len);
 }
 
-/// `out` made to hold exactly `items` (`len` of them): grown at most once, to that length,
-/// and never by the copies of repeated doubling (each copy faults in fresh pages).
+/// `out` made to hold exactly `items` (`len` of them): grown at most once, by one
+/// reservation of room for at least `len` (`Vec::reserve` may allocate more), and never
+/// by the copies of repeated doubling (each copy faults in fresh pages).
 pub(crate) fn refill<T>(out: &mut Vec<T>, len: usize, items: impl Iterator<Item = T>) {
-    reserve(out, len);
+    clear_with_room(out, len);
     out.extend(items);
 }
 

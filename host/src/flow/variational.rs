@@ -50,8 +50,10 @@ const EPS_SMOOTH: f32 = 0.05;
 
 /// The level's images the refinement reads. The buffers are lent to it: only the warps
 /// read the gradients and the second image, and after the last one the refinement gives
-/// them back to the pool, so that the buffers it makes then (the smoothness weights) reuse
-/// their pages.
+/// them back to the pool. With one fixed-point iteration the buffers it makes after the
+/// first warp (the increments, and at full resolution the smoothness weights) reuse their
+/// pages; with more, those are made before the last warp and later requests to the pool
+/// reuse them.
 pub(crate) struct RefineInput<'a> {
     pub w: usize,
     pub h: usize,
@@ -227,25 +229,28 @@ impl<'a> Planes<'a> {
 }
 
 /// Where [`refine`] keeps the smoothness weights.
-enum Weights {
+enum Weights<'p> {
     /// A buffer of the plane pool.
     Values(Lent<f32>),
-    /// The flow's own buffer, lent back by the flow pool (at the pyramid levels).
-    Pairs(Lent<[f32; 2]>),
+    /// A buffer of the flow pool (at the pyramid levels; the flow's, given back just
+    /// before, is among the candidates), with that pool, which lends the refined flow when
+    /// the weights go back to it.
+    Pairs(Lent<[f32; 2]>, &'p Pool<[f32; 2]>),
 }
 
-impl Weights {
+impl Weights<'_> {
     fn values(&mut self) -> &mut [f32] {
         match self {
             Self::Values(v) => v,
-            Self::Pairs(p) => bytemuck::cast_slice_mut(&mut p[..]),
+            Self::Pairs(p, _) => bytemuck::cast_slice_mut(&mut p[..]),
         }
     }
 }
 
 /// Refines `flow` (`w x h`, row-major). With `flows` (at the pyramid levels) the flow and
-/// system planes come from that pool, and the refined flow may come back in another of its
-/// buffers (see the comments in the body); without, it is refined in place.
+/// system planes and the smoothness weights come from that pool, and the refined flow may
+/// come back in another of its buffers (see the comments in the body); without, it is
+/// refined in place.
 pub(crate) fn refine(
     inp: RefineInput<'_>,
     flow: &mut Lent<[f32; 2]>,
@@ -264,7 +269,8 @@ pub(crate) fn refine(
     // each pixel's into its equations (one buffer less to fault in: one-shot `riseg flow`,
     // 230 pages at level 1). Neighbour reads reach the guards of the flow, increment and
     // weight planes, so those start zeroed; the system is only read where written. The
-    // weights are made after the last warp has given its inputs back.
+    // increments and weights are made after the first warp (with one iteration, after the
+    // last warp has given its inputs back, whose buffers they may then reuse).
     // The flow and system planes of both colours share one buffer. At the pyramid levels
     // it comes from the flow pool: the full-resolution flow made after the last level
     // then takes it with its pages already faulted in (one-shot `riseg flow` MEDIUM, 640x480:
@@ -287,7 +293,7 @@ pub(crate) fn refine(
     let (mut sys, _) = Planes::pair(&sp, 5, sys_values);
     // The increments' and the weights' values, made after the first warp: the increment
     // is zero until the first solve (and `scatter` adds that zero to the flow).
-    let mut late: Option<(Lent<f32>, Weights)> = None;
+    let mut late: Option<(Lent<f32>, Weights<'_>)> = None;
     for (c, uvc) in uv.iter_mut().enumerate() {
         scatter(&sp, c, flow, uvc);
     }
@@ -324,12 +330,13 @@ pub(crate) fn refine(
             let duv = pool.zeroed(2 * sp.len(2));
             let wts = match flows {
                 // From `scatter` to `gather` the flow's values live in the planes: its
-                // buffer holds the weights meanwhile, instead of a plane-pool buffer
-                // grown for them (one-shot `riseg flow` MEDIUM, 640x480: 2530 -> 2453
-                // page faults).
+                // buffer goes back to the flow pool, and the weights take a buffer of
+                // that pool (the flow's is among the candidates; `Pool::take` picks)
+                // instead of a plane-pool buffer grown for them (one-shot `riseg flow`
+                // MEDIUM, 640x480: 2530 -> 2453 page faults).
                 Some(f) => {
                     f.put(core::mem::take(flow));
-                    Weights::Pairs(f.zeroed(sp.len(2)))
+                    Weights::Pairs(f.zeroed(sp.len(2)), f)
                 }
                 None => Weights::Values(pool.zeroed(2 * sp.len(2))),
             };
@@ -357,12 +364,11 @@ pub(crate) fn refine(
     // Made in the first iteration: `fixed_point_iters > 0`.
     if let Some((mut duv_values, wts_values)) = late {
         match wts_values {
-            // The weights' buffer (or another of the flow pool) takes the flow back.
-            Weights::Pairs(values) => {
-                if let Some(f) = flows {
-                    f.put(values);
-                    *flow = f.scratch(sp.w * sp.h);
-                }
+            // The flow pool takes the weights back and lends the refined flow (in their
+            // buffer or another of its own).
+            Weights::Pairs(values, f) => {
+                f.put(values);
+                *flow = f.scratch(sp.w * sp.h);
             }
             Weights::Values(values) => pool.put(values),
         }
@@ -762,16 +768,21 @@ mod tests {
         v
     }
 
-    /// A refinement input whose two images are both `i` (`w x h`).
-    fn same_images<'a>(i: &'a [f32], (w, h): (usize, usize), pool: &Pool) -> RefineInput<'a> {
-        let (gx0, gy0) = super::super::pyramid::gradients(i, w, h, pool);
+    /// A refinement input of the images `i0` and `i1` (`w x h`).
+    fn images<'a>(
+        i0: &'a [f32],
+        i1: &[f32],
+        (w, h): (usize, usize),
+        pool: &Pool,
+    ) -> RefineInput<'a> {
+        let (gx0, gy0) = super::super::pyramid::gradients(i0, w, h, pool);
         RefineInput {
             w,
             h,
-            i0: i,
+            i0,
             gx0,
             gy0,
-            second: Warpable::new(i, (w, h), pool),
+            second: Warpable::new(i1, (w, h), pool),
         }
     }
 
@@ -798,7 +809,7 @@ mod tests {
                 edge_grey,
             };
             let mut flow = lent(&flow);
-            refine(same_images(&i0, (w, h), &pool), &mut flow, &s, &pool, None);
+            refine(images(&i0, &i0, (w, h), &pool), &mut flow, &s, &pool, None);
             flow[w + 8][0] - flow[w + 7][0]
         };
         let (uniform, aware) = (step(0.0), step(10.0));
@@ -808,46 +819,74 @@ mod tests {
 
     #[test]
     fn planes_come_from_the_flow_pool_only_when_it_is_given() {
-        // With the flow pool, the flow and system planes are one of its buffers, given
-        // back holding the last values (not zeros), and the weights live in the flow's
-        // buffer; without it, the flow pool is not used. Either way the refined flow is
-        // the same, also when the pools hold buffers of NaN (a value read before it is
-        // written would show).
-        let (w, h) = (12, 9);
-        let i: Vec<f32> = (0..w * h).map(|k| ((k * 29) % 13) as f32 * 9.0).collect();
-        let s = RefineSettings {
-            fixed_point_iters: 1,
-            sor_iters: 2,
-            sor_omega: 1.6,
-            alpha: 20.0,
-            delta: 5.0,
-            edge_grey: 0.0,
-        };
-        let sp = Split::new(w, h);
-        let pairs = (2 * sp.len(2) + 2 * sp.len(5)).div_ceil(2);
-        let refined = [false, true].map(|given| {
-            let (pool, flows) = (Pool::default(), Pool::default());
-            let mut flow = lent(&vec![[0.75f32, -0.5]; w * h]);
-            let inp = same_images(&i, (w, h), &pool);
-            let mut nan = pool.scratch(2 * pairs);
-            nan.fill(f32::NAN);
-            pool.put(nan);
-            let mut nan = flows.scratch(pairs);
-            nan.fill([f32::NAN; 2]);
-            flows.put(nan);
-            refine(inp, &mut flow, &s, &pool, given.then_some(&flows));
-            let kept = flows.scratch(pairs);
-            let written = kept.iter().flatten().any(|v| !v.is_nan());
-            assert_eq!(written, given, "{given}");
-            flow.iter().map(|f| f.map(f32::to_bits)).collect::<Vec<_>>()
-        });
-        assert_eq!(refined[0], refined[1]);
-        assert!(
-            refined[0]
-                .iter()
-                .flatten()
-                .all(|&b| f32::from_bits(b).is_finite())
-        );
+        // With the flow pool, the flow and system planes and the weights are its buffers,
+        // given back holding their last values (not zeros), and the flow may come back in
+        // another of its buffers; without it, the flow pool is not used. Either way the
+        // refined flow is the same, also when the pools hold buffers of NaN (a value read
+        // before it is written would show): odd and even sizes, one and two iterations
+        // (the second warps after the weights are made), with and without edge factors.
+        // With one spare buffer in the flow pool the planes take it and the weights take
+        // the flow's buffer; with two, `Pool::take` picks the other spare or the flow's.
+        for (w, h) in [(12, 9), (13, 8), (3, 5)] {
+            let i0: Vec<f32> = (0..w * h).map(|k| ((k * 29) % 13) as f32 * 9.0).collect();
+            let i1: Vec<f32> = (0..w * h).map(|k| ((k * 17) % 11) as f32 * 10.0).collect();
+            let sp = Split::new(w, h);
+            let pairs = (2 * sp.len(2) + 2 * sp.len(5)).div_ceil(2);
+            for (fixed_point_iters, edge_grey, spares) in [1, 2]
+                .into_iter()
+                .flat_map(|i| [(i, 0.0), (i, 10.0)])
+                .flat_map(|(i, e)| [(i, e, 1), (i, e, 2)])
+            {
+                let s = RefineSettings {
+                    fixed_point_iters,
+                    sor_iters: 2,
+                    sor_omega: 1.6,
+                    alpha: 20.0,
+                    delta: 5.0,
+                    edge_grey,
+                };
+                let case = format!(
+                    "{w}x{h}, {fixed_point_iters} iterations, edge {edge_grey}, {spares} spares"
+                );
+                let refined = [false, true].map(|given| {
+                    let (pool, flows) = (Pool::default(), Pool::default());
+                    // As at a pyramid level: every fresh buffer has room for the planes.
+                    flows.reserve_room(pairs);
+                    let nan_buffer = || {
+                        let mut nan = flows.scratch(pairs);
+                        nan.fill([f32::NAN; 2]);
+                        nan
+                    };
+                    // The flow in a buffer of NaN past its `w x h` values.
+                    flows.put(nan_buffer());
+                    let mut flow = flows.scratch(w * h);
+                    for (k, f) in flow.iter_mut().enumerate() {
+                        *f = [(k % 7) as f32 * 0.25 - 0.75, (k % 5) as f32 * -0.5 + 1.0];
+                    }
+                    let inp = images(&i0, &i1, (w, h), &pool);
+                    let mut nan = pool.scratch(2 * pairs);
+                    nan.fill(f32::NAN);
+                    pool.put(nan);
+                    let nans: Vec<_> = (0..spares).map(|_| nan_buffer()).collect();
+                    for nan in nans {
+                        flows.put(nan);
+                    }
+                    refine(inp, &mut flow, &s, &pool, given.then_some(&flows));
+                    let kept: Vec<_> = (0..spares).map(|_| flows.scratch(pairs)).collect();
+                    let mut written = kept.iter().flat_map(|k| k.iter().flatten());
+                    assert_eq!(written.any(|v| !v.is_nan()), given, "{case}: {given}");
+                    flow.iter().map(|f| f.map(f32::to_bits)).collect::<Vec<_>>()
+                });
+                assert_eq!(refined[0], refined[1], "{case}");
+                assert!(
+                    refined[0]
+                        .iter()
+                        .flatten()
+                        .all(|&b| f32::from_bits(b).is_finite()),
+                    "{case}"
+                );
+            }
+        }
     }
 
     #[test]
@@ -866,7 +905,7 @@ mod tests {
             edge_grey: 0.0,
         };
         refine(
-            same_images(&flat, (w, h), &pool),
+            images(&flat, &flat, (w, h), &pool),
             &mut flow,
             &s,
             &pool,

@@ -101,7 +101,7 @@ pub fn split_mixed_groups(
             .unwrap_or(&mut []),
     );
     // Frames in row order (as CreateFrames writes them) let the neighbour searches walk
-    // a list of members only (`nearest_listed`), with the same result.
+    // a list of members only (`nearest_listed`, `nearest_packed`), with the same result.
     let row_order = n < 1 << 31
         && frames.windows(2).all(|w| match w {
             [a, b] => a.px_t[0][1] <= b.px_t[0][1],
@@ -251,18 +251,29 @@ fn split_one(
             m.copy_from_slice(e.as_slice());
         }
     };
-    for (i, f) in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
-        store(raw, i, miss(&one, f));
-    }
-    // With the frames in row order, the members are listed in `side` (free until the
-    // first parts are set below) and searched among themselves ([`nearest_listed`]).
+    // With the frames in row order and first pixels below 2^16, the members' first
+    // pixels are listed in `side` (free until the first parts are set below), packed as
+    // `u | v << 16`, and searched among themselves ([`nearest_packed`]); the misses are
+    // then stored by place in that list (`slot`), else by frame index.
+    let packed = row_order
+        && frames
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| is_member(i))
+            .all(|(_, f)| f.px_t[0].iter().all(|&c| c < 1 << 16));
+    let slot = |p: usize, i: usize| if packed { p } else { i };
     let mut listed = 0;
-    if row_order {
-        for (i, _) in frames.iter().enumerate().filter(|&(i, _)| is_member(i)) {
-            if let Some(slot) = side.get_mut(listed) {
-                *slot = i as u32;
-                listed += 1;
-            }
+    for (p, (i, f)) in frames
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| is_member(i))
+        .enumerate()
+    {
+        store(raw, slot(p, i), miss(&one, f));
+        if packed && let Some(entry) = side.get_mut(listed) {
+            let [u, v] = f.px_t[0];
+            *entry = u | v << 16;
+            listed += 1;
         }
     }
     let members_listed = side.get(..listed).unwrap_or(&[]);
@@ -273,22 +284,19 @@ fn split_one(
         .filter(|&(i, _)| is_member(i))
         .enumerate()
     {
-        let near = if row_order {
-            // Places in the list, to frame indices (a missing one stays missing).
-            nearest_listed::<SMOOTH_NEIGHBOURS>(frames, members_listed, 0, p).map(|(d, q)| {
-                let j = members_listed.get(q).map_or(usize::MAX, |&j| j as usize);
-                (d, j)
-            })
+        // Neighbours as slots: places in the list, or frame indices.
+        let near = if packed {
+            nearest_packed::<SMOOTH_NEIGHBOURS>(members_listed, p)
         } else {
             nearest::<SMOOTH_NEIGHBOURS>(frames, &is_member, i)
         };
-        let own = stored(raw, i).unwrap_or_else(|| miss(&one, f));
+        let own = stored(raw, slot(p, i)).unwrap_or_else(|| miss(&one, f));
         let (sum_near, n) = near
             .iter()
             .filter_map(|&(_, j)| stored(raw, j))
             .fold((own, 1.0), |(sum, n), e| (sum + e, n + 1.0));
         let e = sum_near / n;
-        store(smooth, i, e);
+        store(smooth, slot(p, i), e);
         sum += e;
         outer += e * e.transpose();
         total_miss += frame_miss(&one, f);
@@ -297,10 +305,14 @@ fn split_one(
     let mean = sum / count;
     let cov = outer / count - mean * mean.transpose();
     let axis = principal_axis(&cov)?;
+    // The list in `side` is done with; `p` counts the members for their slots.
+    let mut p = 0;
     for (i, s) in side.iter_mut().enumerate() {
+        let member = is_member(i);
         *s = u32::from(
-            is_member(i) && stored(smooth, i).is_some_and(|e| (e - mean).dot(&axis) > 0.0),
+            member && stored(smooth, slot(p, i)).is_some_and(|e| (e - mean).dot(&axis) > 0.0),
         );
+        p += usize::from(member);
     }
     let mut fits = (one, one);
     for _ in 0..MAX_ROUNDS {
@@ -486,7 +498,8 @@ fn nearest<const K: usize>(
 ) -> [(Real, usize); K] {
     let both = |j| (j, j);
     let (before, after) = ((0..i).rev().map(both), (i + 1..frames.len()).map(both));
-    nearest_among(frames, i, (before, after), is_member)
+    let pixel = |j: usize| frames.get(j).map(|f| f.px_t[0]);
+    nearest_among(pixel, i, (before, after), is_member)
 }
 
 /// [`nearest`] for the member at place `p` of `members` (the member frames, ascending,
@@ -506,14 +519,34 @@ fn nearest_listed<const K: usize>(
     let index = move |(q, &e): (usize, &u32)| (q, (e >> shift) as usize);
     let before = members.iter().enumerate().take(p).rev().map(index);
     let after = members.iter().enumerate().skip(p + 1).map(index);
-    nearest_among(frames, (i >> shift) as usize, (before, after), &|_| true)
+    let pixel = |j: usize| frames.get(j).map(|f| f.px_t[0]);
+    nearest_among(pixel, (i >> shift) as usize, (before, after), &|_| true)
+}
+
+/// [`nearest_listed`] over a list of the members' first pixels at `t`, each packed as
+/// `u | v << 16`: the same walk and neighbours, without reading the frames.
+fn nearest_packed<const K: usize>(members: &[u32], p: usize) -> [(Real, usize); K] {
+    let (Some(&e), Some(before), Some(after)) =
+        (members.get(p), members.get(..p), members.get(p + 1..))
+    else {
+        return [(Real::INFINITY, usize::MAX); K];
+    };
+    let before = before
+        .iter()
+        .enumerate()
+        .rev()
+        .map(|(q, &e)| (q, e as usize));
+    let after = (after.iter().enumerate()).map(|(k, &e)| (p + 1 + k, e as usize));
+    let pixel = |e: usize| Some([(e & 0xFFFF) as u32, (e >> 16) as u32]);
+    nearest_among(pixel, e as usize, (before, after), &|_| true)
 }
 
 /// The search of [`nearest`]: visits the `(id, frame)`s of `before` (walking back from
 /// frame `i`), then those of `after`, each until a row gap exceeds the `K`-th distance so
-/// far, and keeps the ids of the `K` nearest that are members.
+/// far, and keeps the ids of the `K` nearest that are members. `pixel` gives a frame's
+/// first pixel at `t` (`None` ends a walk).
 fn nearest_among<const K: usize>(
-    frames: &[BodyFrame],
+    pixel: impl Fn(usize) -> Option<[u32; 2]>,
     i: usize,
     (before, after): (
         impl Iterator<Item = (usize, usize)>,
@@ -522,16 +555,15 @@ fn nearest_among<const K: usize>(
     is_member: &impl Fn(usize) -> bool,
 ) -> [(Real, usize); K] {
     let mut near = [(Real::INFINITY, usize::MAX); K];
-    let Some(fi) = frames.get(i) else {
+    let Some([u, v]) = pixel(i) else {
         return near;
     };
-    let [u, v] = fi.px_t[0];
     let (u, v) = (u as Real, v as Real);
     let visit = |(id, j): (usize, usize), near: &mut [(Real, usize); K]| -> bool {
-        let Some(fj) = frames.get(j) else {
+        let Some([uj, vj]) = pixel(j) else {
             return false;
         };
-        let (du, dv) = (fj.px_t[0][0] as Real - u, fj.px_t[0][1] as Real - v);
+        let (du, dv) = (uj as Real - u, vj as Real - v);
         let worst = near.last().map_or(Real::INFINITY, |w| w.0);
         if dv * dv > worst {
             return false;
@@ -714,10 +746,11 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// With frames in row order, the listed neighbour search and coherence test
-        /// ([`nearest_listed`], [`coherence_listed`]) give what the walks over all frames
-        /// give, bit for bit, and the coherence test leaves `side` as it found it. Pixels
-        /// sit on a coarse lattice so that ties in distance are common.
+        /// With frames in row order, the listed neighbour searches and coherence test
+        /// ([`nearest_listed`], [`nearest_packed`], [`coherence_listed`]) give what the
+        /// walks over all frames give, bit for bit, and the coherence test leaves `side`
+        /// as it found it. Pixels sit on a coarse lattice so that ties in distance are
+        /// common.
         #[test]
         fn listed_searches_equal_the_walks_over_all_frames(
             cells in proptest::collection::vec((0u32..30, 0u32..30, 0u16..3, 0u32..2), 1..300),
@@ -737,11 +770,20 @@ mod tests {
                 .filter(|&i| is_member(i))
                 .map(|i| i as u32)
                 .collect();
+            let pixels: std::vec::Vec<u32> = members
+                .iter()
+                .filter_map(|&i| frames.get(i as usize))
+                .map(|f| f.px_t[0][0] | f.px_t[0][1] << 16)
+                .collect();
             for (p, &i) in members.iter().enumerate() {
                 let walk = nearest::<SMOOTH_NEIGHBOURS>(&frames, &is_member, i as usize);
-                let listed = nearest_listed::<SMOOTH_NEIGHBOURS>(&frames, &members, 0, p)
-                    .map(|(d, q)| (d, members.get(q).map_or(usize::MAX, |&j| j as usize)));
-                proptest::prop_assert_eq!(walk, listed, "frame {}", i);
+                let to_frames = |near: [(Real, usize); SMOOTH_NEIGHBOURS]| {
+                    near.map(|(d, q)| (d, members.get(q).map_or(usize::MAX, |&j| j as usize)))
+                };
+                let listed = nearest_listed::<SMOOTH_NEIGHBOURS>(&frames, &members, 0, p);
+                proptest::prop_assert_eq!(walk, to_frames(listed), "frame {}", i);
+                let packed = nearest_packed::<SMOOTH_NEIGHBOURS>(&pixels, p);
+                proptest::prop_assert_eq!(walk, to_frames(packed), "frame {} packed", i);
             }
             let side: std::vec::Vec<u32> = cells
                 .iter()

@@ -36,7 +36,8 @@
 //! freeing them waits for a TRIM, ~2.3 ms here) and writing OUT's sibling `*.new.flo`,
 //! removed before the run outside the timing (`process_new`, the figure `bench/speed.sh`
 //! judges). `decode` is the median time of decoding both
-//! PNGs here one after the other, to one value per pixel, as the CLI reads them.
+//! PNGs here one after the other, to one value per pixel, as the CLI reads them; `start` the
+//! wall time of a `riseg --version` process (spawn, load, exit: what every process pays).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -322,6 +323,24 @@ fn oneshot(riseg: &Path, first: &Path, second: &Path, out: &Path, runs: usize) -
         decode.push(start.elapsed().as_secs_f64() * 1e3);
     }
     println!("oneshot\tdecode\tpair\t{:.3}", median(decode));
+    // The cost of any `riseg` process, whatever it does: spawn, load, `--version`, exit.
+    let mut start_exit = Vec::with_capacity(runs);
+    for _ in 0..=runs {
+        let start = Instant::now();
+        let output = Command::new(riseg)
+            .arg("--version")
+            .output()
+            .with_context(|| format!("running {}", riseg.display()))?;
+        if !output.status.success() {
+            bail!("{} --version failed: {}", riseg.display(), output.status);
+        }
+        start_exit.push(start.elapsed().as_secs_f64() * 1e3);
+    }
+    // The first run loads the binary into the page cache.
+    println!(
+        "oneshot\tstart\tprocess\t{:.3}",
+        median(start_exit.split_off(1))
+    );
     for threads in ONESHOT_THREADS {
         let flow = DisFlow::new(FlowParams::MEDIUM)?.with_threads(threads)?;
         let process = |to: &Path| -> Result<()> {

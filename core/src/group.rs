@@ -196,9 +196,7 @@ pub fn group_frames(
     let bin_width = cfg.kde_range_m / KDE_BINS as Real;
     let bins_per_m = 1.0 / bin_width;
     let lanes = fill_lanes(twists, &mut scratch.twist_lanes[..need.twist_lanes]);
-    for (i, row) in pair_rows_mut(n, pair_bin) {
-        pair_codes(&lanes, i, (attach, links), (scale, bins_per_m), row);
-    }
+    pass_one(&lanes, (attach, links), (scale, bins_per_m), pair_bin);
     // Histograms (index 0: inside one segment, 1: across), counted per code first.
     let per_code = count_codes(pair_bin);
     let mut hist = [[0u32; KDE_BINS]; 2];
@@ -531,11 +529,50 @@ fn four_distances_squared(
     (v2 + scale2 * w2).to_array()
 }
 
+/// Pass 1: writes the codes of all pairs into `pair_bin`, row by row ([`pair_codes`]).
+/// `labels` are the frames' labels and `flags` their [`across_flags`]. A row whose pairs
+/// are all inside one segment (its frame's run of equal labels reaches the last frame, as
+/// every row does when the frames lie in one segment) is coded without looking at labels
+/// or flags.
+fn pass_one(
+    lanes: &[&[Real]; TWIST_LANES],
+    (labels, flags): (&[u32], &[u32]),
+    scales: (Real, Real),
+    pair_bin: &mut [u8],
+) {
+    let n = labels.len();
+    let mut run_end = 0;
+    for (i, row) in pair_rows_mut(n, pair_bin) {
+        if run_end <= i {
+            let later = labels.get(i + 1..).unwrap_or(&[]);
+            let label = labels.get(i);
+            run_end = i + 1 + later.iter().take_while(|&l| Some(l) == label).count();
+        }
+        if run_end >= n {
+            pair_codes::<true>(lanes, i, (labels, flags), scales, row);
+        } else {
+            pair_codes::<false>(lanes, i, (labels, flags), scales, row);
+        }
+    }
+}
+
 /// Pass 1 for frame `i`: writes the codes of its pairs with frames `i + 1..` into `row`
 /// (`n − i − 1` entries), sixteen frames at a time, then four, then one. Bit for bit what
 /// [`Twist::distance`] gives pair by pair: the same operations in the same order, one
-/// lane per pair. `labels` are the frames' labels and `flags` their [`across_flags`].
-fn pair_codes<'a>(
+/// lane per pair. `labels` are the frames' labels and `flags` their [`across_flags`];
+/// `INSIDE`: every partner has frame `i`'s label, so the codes are the bins alone.
+// Where sixteen pairs are coded at a time, each kind of row is a function of its own:
+// inlined side by side, the inside rows' loop reloaded the splat twist from the stack
+// every sixteen pairs. Without vector lanes (Cortex-M) the inlined pair costs less.
+#[cfg_attr(
+    any(
+        target_feature = "sse2",
+        target_feature = "simd128",
+        target_feature = "neon"
+    ),
+    inline(never)
+)]
+fn pair_codes<'a, const INSIDE: bool>(
     lanes: &[&[Real]; TWIST_LANES],
     i: usize,
     (labels, flags): (&'a [u32], &'a [u32]),
@@ -592,11 +629,12 @@ fn pair_codes<'a>(
             return;
         };
         let quarter = |k: usize| {
-            row_frame.four_codes(
-                [&w0[k], &w1[k], &w2[k], &v0[k], &v1[k], &v2[k]],
-                &lj[k],
-                &fj[k],
-            )
+            let tj = [&w0[k], &w1[k], &w2[k], &v0[k], &v1[k], &v2[k]];
+            if INSIDE {
+                row_frame.four_bins(tj)
+            } else {
+                row_frame.four_codes(tj, &lj[k], &fj[k])
+            }
         };
         // Codes are bytes, so the saturating narrowings are exact.
         let pack = |a: i32x4, b: i32x4| {
@@ -618,7 +656,12 @@ fn pair_codes<'a>(
     let meta4 = after16(labels).iter().zip(after16(flags));
     for ((out, (lj, fj)), tj) in row4.iter_mut().zip(meta4).zip(tj4) {
         let (((((w0, w1), w2), v0), v1), v2) = tj;
-        let codes = row_frame.four_codes([w0, w1, w2, v0, v1, v2], lj, fj);
+        let tj = [w0, w1, w2, v0, v1, v2];
+        let codes = if INSIDE {
+            row_frame.four_bins(tj)
+        } else {
+            row_frame.four_codes(tj, lj, fj)
+        };
         *out = codes.to_array().map(|c| c as u8);
     }
     let done = done16 + row4.len() * 4;
@@ -633,7 +676,8 @@ fn pair_codes<'a>(
             labels.get(done + k).copied().unwrap_or(0),
             flags.get(done + k).copied().unwrap_or(0),
         );
-        *slot = pair_code(sqrt(v2 + scale2 * w2), bins_per_m, li != lj, fj | own);
+        let across = !INSIDE && li != lj;
+        *slot = pair_code(sqrt(v2 + scale2 * w2), bins_per_m, across, fj | own);
     }
 }
 
@@ -664,10 +708,16 @@ impl RowFrame {
         flags: &[u32; 4],
     ) -> i32x4 {
         let lanes_of = |x: &[u32; 4]| i32x4::new(x.map(|x| x as i32));
-        let norm2 = four_distances_squared(&self.twist, tj, self.scale2);
-        let bins = four_bins(sqrt4(f32x4::new(norm2)) * self.bins_per_m);
         let inside = lanes_of(labels).simd_eq(self.label);
-        bins | (!inside & (lanes_of(flags) | self.flags))
+        self.four_bins(tj) | (!inside & (lanes_of(flags) | self.flags))
+    }
+
+    /// The bins of its pairs with four frames ([`four_bins`]): their codes when the
+    /// frames have its label.
+    #[inline]
+    fn four_bins(&self, tj: [&[Real; 4]; TWIST_LANES]) -> i32x4 {
+        let norm2 = four_distances_squared(&self.twist, tj, self.scale2);
+        four_bins(sqrt4(f32x4::new(norm2)) * self.bins_per_m)
     }
 }
 
@@ -1396,10 +1446,23 @@ mod tests {
         fn pass_one_codes_equal_the_pair_by_pair_codes(
             frames in proptest::collection::vec(
                 (proptest::array::uniform6(component()), 0u16..3),
-                1..40,
+                1..60,
             ),
             scale in proptest::sample::select(vec![0.05f32, 1.0]),
+            (spread, sorted) in (1u16..4, proptest::bool::ANY),
         ) {
+            // Labels in long runs too (one label, or sorted), as the frames of a scene come.
+            let mut frames = frames;
+            for f in &mut frames {
+                f.1 %= spread;
+            }
+            if sorted {
+                let mut labels: Vec<u16> = frames.iter().map(|f| f.1).collect();
+                labels.sort_unstable();
+                for (f, l) in frames.iter_mut().zip(labels) {
+                    f.1 = l;
+                }
+            }
             let n = frames.len();
             let twists: Vec<Twist> = frames
                 .iter()
@@ -1420,9 +1483,13 @@ mod tests {
             let mut lanes_buf = vec![0.0; TWIST_LANES * n];
             let lanes = fill_lanes(&twists, &mut lanes_buf);
             let mut pair_bin = vec![0u8; GroupScratchLen::for_frames(n).pair_bin];
-            for (i, row) in pair_rows_mut(n, &mut pair_bin) {
-                pair_codes(&lanes, i, (&labels32, &flags), (scale, bins_per_m), row);
+            pass_one(&lanes, (&labels32, &flags), (scale, bins_per_m), &mut pair_bin);
+            // Every row through the path that looks at labels, too.
+            let mut labelled = vec![0u8; pair_bin.len()];
+            for (i, row) in pair_rows_mut(n, &mut labelled) {
+                pair_codes::<false>(&lanes, i, (&labels32, &flags), (scale, bins_per_m), row);
             }
+            proptest::prop_assert_eq!(&labelled, &pair_bin);
             let mut expected = Vec::new();
             for i in 0..n {
                 for j in i + 1..n {

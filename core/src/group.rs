@@ -220,25 +220,23 @@ pub fn group_frames(
     // table look-up is one compare, which vectorises.
     let density = links;
     density.fill(0);
-    let link_below = codes_below(&links_at);
-    for (i, row) in pair_rows(n, pair_bin) {
-        let Some(later) = density.get_mut(i + 1..) else {
-            break;
-        };
-        let own = match link_below {
-            Some(bound) => add_links_below(row, later, bound),
-            None => {
+    match codes_below(&links_at) {
+        Some(bound) => links_below(n, pair_bin, bound, density, SIXTEEN_PAIR_CODES),
+        None => {
+            for (i, row) in pair_rows(n, pair_bin) {
+                let Some(later) = density.get_mut(i + 1..) else {
+                    break;
+                };
                 let mut own = 0u32;
                 for (&code, d) in row.iter().zip(later) {
                     let link = u32::from(links_at[usize::from(code)]);
                     own += link;
                     *d += link;
                 }
-                own
+                if let Some(d) = density.get_mut(i) {
+                    *d += own;
+                }
             }
-        };
-        if let Some(d) = density.get_mut(i) {
-            *d += own;
         }
     }
     // Pass 3 (quick shift): each frame points at its nearest linked frame of higher
@@ -795,6 +793,118 @@ fn codes_below(table: &[bool; 256]) -> Option<u8> {
     let bound = table.iter().take_while(|&&t| t).count();
     let rest = table.get(bound..).unwrap_or(&[]);
     (rest.iter().all(|&t| !t)).then_some(u8::try_from(bound).ok()?)
+}
+
+/// Rows that [`links_below`] takes at a time where there are vector lanes.
+const LINK_ROWS: usize = 8;
+
+/// Pass 2 when the linking codes are those below `bound`: adds each frame's number of
+/// links to its entry of `density` (`n` entries). With `blocks` (where there are vector
+/// lanes) rows go [`LINK_ROWS`] at a time ([`link_rows_below`]); the last rows, and every
+/// row without, one at a time ([`add_links_below`]).
+fn links_below(n: usize, pair_bin: &[u8], bound: u8, density: &mut [u32], blocks: bool) {
+    let mut rows = pair_rows(n, pair_bin);
+    loop {
+        let block: [Option<(usize, &[u8])>; LINK_ROWS] = core::array::from_fn(|_| rows.next());
+        let full = matches!(block, [.., Some(_)]);
+        if blocks && let [Some((first, _)), .., Some(_)] = block {
+            link_rows_below(
+                first,
+                block.map(|r| r.map_or(&[][..], |r| r.1)),
+                bound,
+                density,
+            );
+            continue;
+        }
+        for &(i, row) in block.iter().flatten() {
+            let Some(later) = density.get_mut(i + 1..) else {
+                break;
+            };
+            let own = add_links_below(row, later, bound);
+            if let Some(d) = density.get_mut(i) {
+                *d += own;
+            }
+        }
+        if !full {
+            return;
+        }
+    }
+}
+
+/// [`links_below`] for the rows of frames `first..first + LINK_ROWS` (`rows`, each
+/// running to the last frame). Their pairs with each sixteen later frames are compared at
+/// once, row by row, and the links summed in bytes: the later frames' sums (at most
+/// [`LINK_ROWS`]) are widened once per sixteen, and each row's own ones are kept sixteen
+/// lanes wide and emptied every 255 rounds, before a byte could carry. The pairs among the
+/// block's frames and the rows' last few pairs go one at a time.
+fn link_rows_below(first: usize, rows: [&[u8]; LINK_ROWS], bound: u8, density: &mut [u32]) {
+    // Adds the links of `codes` to `later` and returns their number.
+    let one_by_one = |codes: &[u8], later: &mut [u32]| {
+        let mut own = 0;
+        for (&code, d) in codes.iter().zip(later) {
+            let link = u32::from(code < bound);
+            *d += link;
+            own += link;
+        }
+        own
+    };
+    // Pairs among the block's frames: the first `LINK_ROWS - 1 - r` of row `r`.
+    let mut own = [0u32; LINK_ROWS];
+    for (r, (row, own)) in rows.iter().zip(own.iter_mut()).enumerate() {
+        let codes = row.get(..LINK_ROWS - 1 - r).unwrap_or(row);
+        *own += one_by_one(codes, density.get_mut(first + r + 1..).unwrap_or(&mut []));
+    }
+    // Pairs with the frames from `first + LINK_ROWS` on, sixteen at a time.
+    let bodies: [&[u8]; LINK_ROWS] =
+        core::array::from_fn(|r| rows[r].get(LINK_ROWS - 1 - r..).unwrap_or(&[]));
+    let chunks = bodies.iter().map(|b| b.len() / 16).min().unwrap_or(0);
+    let later = density.get_mut(first + LINK_ROWS..).unwrap_or(&mut []);
+    let (later16, rest) = later.split_at_mut((chunks * 16).min(later.len()));
+    let [b0, b1, b2, b3, b4, b5, b6, b7] = bodies.map(|b| b.as_chunks::<16>().0);
+    let sixteens = (b0.iter().zip(b1).zip(b2).zip(b3)).zip(b4.iter().zip(b5).zip(b6).zip(b7));
+    let bound16 = u8x16::splat(bound);
+    // The pairs that do not link are counted (a compare gives all ones for them, so
+    // subtracting it adds one), which spares inverting each compare: the links are the
+    // pairs less those. `own16` holds each row's since it was last emptied, `rounds` ago.
+    let mut own16 = [u8x16::ZERO; LINK_ROWS];
+    let empty = |own16: &mut [u8x16; LINK_ROWS], own: &mut [u32; LINK_ROWS], rounds: u32| {
+        for (o, bytes) in own.iter_mut().zip(own16.iter_mut()) {
+            let unlinked: u32 = bytes.to_array().iter().map(|&b| u32::from(b)).sum();
+            *o += 16 * rounds - unlinked;
+            *bytes = u8x16::ZERO;
+        }
+    };
+    let mut rounds = 0;
+    let block_rows = u8x16::splat(LINK_ROWS as u8);
+    for (d, ((((r0, r1), r2), r3), (((r4, r5), r6), r7))) in
+        later16.as_chunks_mut::<16>().0.iter_mut().zip(sixteens)
+    {
+        let mut unlinked = u8x16::ZERO;
+        for (codes, own16) in [r0, r1, r2, r3, r4, r5, r6, r7]
+            .iter()
+            .zip(own16.iter_mut())
+        {
+            let codes = u8x16::new(**codes);
+            let unlink = codes.max(bound16).simd_eq(codes);
+            unlinked -= unlink;
+            *own16 -= unlink;
+        }
+        for (d, &links) in d.iter_mut().zip(&(block_rows - unlinked).to_array()) {
+            *d += u32::from(links);
+        }
+        rounds += 1;
+        if rounds == 255 {
+            empty(&mut own16, &mut own, rounds);
+            rounds = 0;
+        }
+    }
+    empty(&mut own16, &mut own, rounds);
+    for (body, own) in bodies.iter().zip(own.iter_mut()) {
+        *own += one_by_one(body.get(chunks * 16..).unwrap_or(&[]), &mut *rest);
+    }
+    for (d, o) in density.iter_mut().skip(first).zip(own) {
+        *d += o;
+    }
 }
 
 /// Pass 2 for one row when the linking codes are those below `bound`: adds each pair's
@@ -1393,8 +1503,13 @@ mod tests {
                     plain[i + 1 + k] += link;
                 }
             }
-            proptest::prop_assert_eq!(plain, fast);
-
+            proptest::prop_assert_eq!(&plain, &fast);
+            // The whole pass, rows in blocks and one by one.
+            for blocks in [true, false] {
+                let mut whole = vec![0u32; n];
+                links_below(n, &bins, bound, &mut whole, blocks);
+                proptest::prop_assert_eq!(&plain, &whole, "blocks {}", blocks);
+            }
         }
 
         /// [`attach_up`] chooses what pass 3 pair by pair chooses, with densities that tie
@@ -1424,6 +1539,26 @@ mod tests {
             attach_up(n, &bins, &mut density.to_vec(), &attaches_at, &mut attach, &mut near);
             proptest::prop_assert_eq!(attach, attach_up_pair_by_pair(n, &bins, density, &attaches_at));
         }
+    }
+
+    /// Pass 2 in blocks of rows counts links in bytes; a row longer than 255 sixteens
+    /// (and whole rows of links) must not carry a byte.
+    #[test]
+    fn blocked_link_counts_survive_long_rows_of_links() {
+        let n = 16 * 256 + 40;
+        let len = GroupScratchLen::for_frames(n).pair_bin;
+        let bins: Vec<u8> = (0..len).map(|k| if k % 97 == 0 { 9 } else { 2 }).collect();
+        let mut plain = vec![0u32; n];
+        for (i, row) in pair_rows(n, &bins) {
+            for (k, &code) in row.iter().enumerate() {
+                let link = u32::from(code < 3);
+                plain[i] += link;
+                plain[i + 1 + k] += link;
+            }
+        }
+        let mut blocked = vec![0u32; n];
+        links_below(n, &bins, 3, &mut blocked, true);
+        assert_eq!(plain, blocked);
     }
 
     /// A twist component: ordinary, zero, huge or not a number.

@@ -1148,12 +1148,15 @@ fn smooth(hist: &[Real; KDE_BINS], sigma_bins: Real, from: usize, to: usize) -> 
         let x = d as Real / sigma;
         *k = exp(-0.5 * x * x);
     }
+    // Only the bins within reach: farther ones would add `count · 0`, which leaves a
+    // non-negative sum as it is.
     let mut out = [0.0; KDE_BINS];
     for (b, &count) in hist.iter().enumerate().take(to).skip(from) {
         if count == 0.0 {
             continue;
         }
-        for (o, slot) in out.iter_mut().enumerate() {
+        let (near, far) = (b.saturating_sub(reach - 1), b.saturating_add(reach));
+        for (o, slot) in out.iter_mut().enumerate().take(far).skip(near) {
             let d = b.abs_diff(o);
             if let Some(k) = kernel.get(d) {
                 *slot += count * k;
@@ -1216,6 +1219,37 @@ mod tests {
         for sigma_bins in [1e30, Real::MAX, Real::INFINITY] {
             let out = smooth(&hist, sigma_bins, 0, KDE_BINS);
             assert!(out.iter().all(|&v| v == 2.0), "sigma {sigma_bins}: {out:?}");
+        }
+    }
+
+    proptest::proptest! {
+        /// The smoothing visits only the bins within the kernel's reach, and gives what
+        /// adding every bin's kernel to every bin gives, bit for bit.
+        #[test]
+        fn smoothing_within_reach_equals_smoothing_everywhere(
+            counts in proptest::collection::vec(
+                proptest::prop_oneof![3 => proptest::strategy::Just(0u32), 1 => 0u32..5000],
+                KDE_BINS,
+            ),
+            sigma_bins in proptest::prop_oneof![0.0 as Real..8.0, 8.0 as Real..200.0],
+            (from, to) in (0..KDE_BINS, 0..=KDE_BINS),
+        ) {
+            let hist: [Real; KDE_BINS] = core::array::from_fn(|b| counts[b] as Real);
+            let sigma = sigma_bins.max(0.5);
+            let reach = ((3.0 * sigma) as usize).saturating_add(1);
+            let mut kernel = [0.0 as Real; KDE_BINS];
+            for (d, k) in kernel.iter_mut().enumerate().take(reach.min(KDE_BINS)) {
+                let x = d as Real / sigma;
+                *k = exp(-0.5 * x * x);
+            }
+            let mut everywhere = [0.0 as Real; KDE_BINS];
+            for (b, &count) in hist.iter().enumerate().take(to).skip(from) {
+                for (o, slot) in everywhere.iter_mut().enumerate() {
+                    *slot += count * kernel[b.abs_diff(o)];
+                }
+            }
+            let got = smooth(&hist, sigma_bins, from, to);
+            proptest::prop_assert_eq!(got.map(Real::to_bits), everywhere.map(Real::to_bits));
         }
     }
 

@@ -196,9 +196,7 @@ pub fn group_frames(
     let bin_width = cfg.kde_range_m / KDE_BINS as Real;
     let bins_per_m = 1.0 / bin_width;
     let lanes = fill_lanes(twists, &mut scratch.twist_lanes[..need.twist_lanes]);
-    for (i, row) in pair_rows_mut(n, pair_bin) {
-        pair_codes(&lanes, i, (attach, links), (scale, bins_per_m), row);
-    }
+    pass_one(&lanes, (attach, links), (scale, bins_per_m), pair_bin);
     // Histograms (index 0: inside one segment, 1: across), counted per code first.
     let per_code = count_codes(pair_bin);
     let mut hist = [[0u32; KDE_BINS]; 2];
@@ -222,25 +220,23 @@ pub fn group_frames(
     // table look-up is one compare, which vectorises.
     let density = links;
     density.fill(0);
-    let link_below = codes_below(&links_at);
-    for (i, row) in pair_rows(n, pair_bin) {
-        let Some(later) = density.get_mut(i + 1..) else {
-            break;
-        };
-        let own = match link_below {
-            Some(bound) => add_links_below(row, later, bound),
-            None => {
+    match codes_below(&links_at) {
+        Some(bound) => links_below(n, pair_bin, bound, density, SIXTEEN_PAIR_CODES),
+        None => {
+            for (i, row) in pair_rows(n, pair_bin) {
+                let Some(later) = density.get_mut(i + 1..) else {
+                    break;
+                };
                 let mut own = 0u32;
                 for (&code, d) in row.iter().zip(later) {
                     let link = u32::from(links_at[usize::from(code)]);
                     own += link;
                     *d += link;
                 }
-                own
+                if let Some(d) = density.get_mut(i) {
+                    *d += own;
+                }
             }
-        };
-        if let Some(d) = density.get_mut(i) {
-            *d += own;
         }
     }
     // Pass 3 (quick shift): each frame points at its nearest linked frame of higher
@@ -531,11 +527,50 @@ fn four_distances_squared(
     (v2 + scale2 * w2).to_array()
 }
 
+/// Pass 1: writes the codes of all pairs into `pair_bin`, row by row ([`pair_codes`]).
+/// `labels` are the frames' labels and `flags` their [`across_flags`]. A row whose pairs
+/// are all inside one segment (its frame's run of equal labels reaches the last frame, as
+/// every row does when the frames lie in one segment) is coded without looking at labels
+/// or flags.
+fn pass_one(
+    lanes: &[&[Real]; TWIST_LANES],
+    (labels, flags): (&[u32], &[u32]),
+    scales: (Real, Real),
+    pair_bin: &mut [u8],
+) {
+    let n = labels.len();
+    let mut run_end = 0;
+    for (i, row) in pair_rows_mut(n, pair_bin) {
+        if run_end <= i {
+            let later = labels.get(i + 1..).unwrap_or(&[]);
+            let label = labels.get(i);
+            run_end = i + 1 + later.iter().take_while(|&l| Some(l) == label).count();
+        }
+        if run_end >= n {
+            pair_codes::<true>(lanes, i, (labels, flags), scales, row);
+        } else {
+            pair_codes::<false>(lanes, i, (labels, flags), scales, row);
+        }
+    }
+}
+
 /// Pass 1 for frame `i`: writes the codes of its pairs with frames `i + 1..` into `row`
 /// (`n − i − 1` entries), sixteen frames at a time, then four, then one. Bit for bit what
 /// [`Twist::distance`] gives pair by pair: the same operations in the same order, one
-/// lane per pair. `labels` are the frames' labels and `flags` their [`across_flags`].
-fn pair_codes<'a>(
+/// lane per pair. `labels` are the frames' labels and `flags` their [`across_flags`];
+/// `INSIDE`: every partner has frame `i`'s label, so the codes are the bins alone.
+// Where sixteen pairs are coded at a time, each kind of row is a function of its own:
+// inlined side by side, the inside rows' loop reloaded the splat twist from the stack
+// every sixteen pairs. Without vector lanes (Cortex-M) the inlined pair costs less.
+#[cfg_attr(
+    any(
+        target_feature = "sse2",
+        target_feature = "simd128",
+        target_feature = "neon"
+    ),
+    inline(never)
+)]
+fn pair_codes<'a, const INSIDE: bool>(
     lanes: &[&[Real]; TWIST_LANES],
     i: usize,
     (labels, flags): (&'a [u32], &'a [u32]),
@@ -592,11 +627,12 @@ fn pair_codes<'a>(
             return;
         };
         let quarter = |k: usize| {
-            row_frame.four_codes(
-                [&w0[k], &w1[k], &w2[k], &v0[k], &v1[k], &v2[k]],
-                &lj[k],
-                &fj[k],
-            )
+            let tj = [&w0[k], &w1[k], &w2[k], &v0[k], &v1[k], &v2[k]];
+            if INSIDE {
+                row_frame.four_bins(tj)
+            } else {
+                row_frame.four_codes(tj, &lj[k], &fj[k])
+            }
         };
         // Codes are bytes, so the saturating narrowings are exact.
         let pack = |a: i32x4, b: i32x4| {
@@ -618,7 +654,12 @@ fn pair_codes<'a>(
     let meta4 = after16(labels).iter().zip(after16(flags));
     for ((out, (lj, fj)), tj) in row4.iter_mut().zip(meta4).zip(tj4) {
         let (((((w0, w1), w2), v0), v1), v2) = tj;
-        let codes = row_frame.four_codes([w0, w1, w2, v0, v1, v2], lj, fj);
+        let tj = [w0, w1, w2, v0, v1, v2];
+        let codes = if INSIDE {
+            row_frame.four_bins(tj)
+        } else {
+            row_frame.four_codes(tj, lj, fj)
+        };
         *out = codes.to_array().map(|c| c as u8);
     }
     let done = done16 + row4.len() * 4;
@@ -633,7 +674,8 @@ fn pair_codes<'a>(
             labels.get(done + k).copied().unwrap_or(0),
             flags.get(done + k).copied().unwrap_or(0),
         );
-        *slot = pair_code(sqrt(v2 + scale2 * w2), bins_per_m, li != lj, fj | own);
+        let across = !INSIDE && li != lj;
+        *slot = pair_code(sqrt(v2 + scale2 * w2), bins_per_m, across, fj | own);
     }
 }
 
@@ -664,10 +706,16 @@ impl RowFrame {
         flags: &[u32; 4],
     ) -> i32x4 {
         let lanes_of = |x: &[u32; 4]| i32x4::new(x.map(|x| x as i32));
-        let norm2 = four_distances_squared(&self.twist, tj, self.scale2);
-        let bins = four_bins(sqrt4(f32x4::new(norm2)) * self.bins_per_m);
         let inside = lanes_of(labels).simd_eq(self.label);
-        bins | (!inside & (lanes_of(flags) | self.flags))
+        self.four_bins(tj) | (!inside & (lanes_of(flags) | self.flags))
+    }
+
+    /// The bins of its pairs with four frames ([`four_bins`]): their codes when the
+    /// frames have its label.
+    #[inline]
+    fn four_bins(&self, tj: [&[Real; 4]; TWIST_LANES]) -> i32x4 {
+        let norm2 = four_distances_squared(&self.twist, tj, self.scale2);
+        four_bins(sqrt4(f32x4::new(norm2)) * self.bins_per_m)
     }
 }
 
@@ -745,6 +793,118 @@ fn codes_below(table: &[bool; 256]) -> Option<u8> {
     let bound = table.iter().take_while(|&&t| t).count();
     let rest = table.get(bound..).unwrap_or(&[]);
     (rest.iter().all(|&t| !t)).then_some(u8::try_from(bound).ok()?)
+}
+
+/// Rows that [`links_below`] takes at a time where there are vector lanes.
+const LINK_ROWS: usize = 8;
+
+/// Pass 2 when the linking codes are those below `bound`: adds each frame's number of
+/// links to its entry of `density` (`n` entries). With `blocks` (where there are vector
+/// lanes) rows go [`LINK_ROWS`] at a time ([`link_rows_below`]); the last rows, and every
+/// row without, one at a time ([`add_links_below`]).
+fn links_below(n: usize, pair_bin: &[u8], bound: u8, density: &mut [u32], blocks: bool) {
+    let mut rows = pair_rows(n, pair_bin);
+    loop {
+        let block: [Option<(usize, &[u8])>; LINK_ROWS] = core::array::from_fn(|_| rows.next());
+        let full = matches!(block, [.., Some(_)]);
+        if blocks && let [Some((first, _)), .., Some(_)] = block {
+            link_rows_below(
+                first,
+                block.map(|r| r.map_or(&[][..], |r| r.1)),
+                bound,
+                density,
+            );
+            continue;
+        }
+        for &(i, row) in block.iter().flatten() {
+            let Some(later) = density.get_mut(i + 1..) else {
+                break;
+            };
+            let own = add_links_below(row, later, bound);
+            if let Some(d) = density.get_mut(i) {
+                *d += own;
+            }
+        }
+        if !full {
+            return;
+        }
+    }
+}
+
+/// [`links_below`] for the rows of frames `first..first + LINK_ROWS` (`rows`, each
+/// running to the last frame). Their pairs with each sixteen later frames are compared at
+/// once, row by row, and the links summed in bytes: the later frames' sums (at most
+/// [`LINK_ROWS`]) are widened once per sixteen, and each row's own ones are kept sixteen
+/// lanes wide and emptied every 255 rounds, before a byte could carry. The pairs among the
+/// block's frames and the rows' last few pairs go one at a time.
+fn link_rows_below(first: usize, rows: [&[u8]; LINK_ROWS], bound: u8, density: &mut [u32]) {
+    // Adds the links of `codes` to `later` and returns their number.
+    let one_by_one = |codes: &[u8], later: &mut [u32]| {
+        let mut own = 0;
+        for (&code, d) in codes.iter().zip(later) {
+            let link = u32::from(code < bound);
+            *d += link;
+            own += link;
+        }
+        own
+    };
+    // Pairs among the block's frames: the first `LINK_ROWS - 1 - r` of row `r`.
+    let mut own = [0u32; LINK_ROWS];
+    for (r, (row, own)) in rows.iter().zip(own.iter_mut()).enumerate() {
+        let codes = row.get(..LINK_ROWS - 1 - r).unwrap_or(row);
+        *own += one_by_one(codes, density.get_mut(first + r + 1..).unwrap_or(&mut []));
+    }
+    // Pairs with the frames from `first + LINK_ROWS` on, sixteen at a time.
+    let bodies: [&[u8]; LINK_ROWS] =
+        core::array::from_fn(|r| rows[r].get(LINK_ROWS - 1 - r..).unwrap_or(&[]));
+    let chunks = bodies.iter().map(|b| b.len() / 16).min().unwrap_or(0);
+    let later = density.get_mut(first + LINK_ROWS..).unwrap_or(&mut []);
+    let (later16, rest) = later.split_at_mut((chunks * 16).min(later.len()));
+    let [b0, b1, b2, b3, b4, b5, b6, b7] = bodies.map(|b| b.as_chunks::<16>().0);
+    let sixteens = (b0.iter().zip(b1).zip(b2).zip(b3)).zip(b4.iter().zip(b5).zip(b6).zip(b7));
+    let bound16 = u8x16::splat(bound);
+    // The pairs that do not link are counted (a compare gives all ones for them, so
+    // subtracting it adds one), which spares inverting each compare: the links are the
+    // pairs less those. `own16` holds each row's since it was last emptied, `rounds` ago.
+    let mut own16 = [u8x16::ZERO; LINK_ROWS];
+    let empty = |own16: &mut [u8x16; LINK_ROWS], own: &mut [u32; LINK_ROWS], rounds: u32| {
+        for (o, bytes) in own.iter_mut().zip(own16.iter_mut()) {
+            let unlinked: u32 = bytes.to_array().iter().map(|&b| u32::from(b)).sum();
+            *o += 16 * rounds - unlinked;
+            *bytes = u8x16::ZERO;
+        }
+    };
+    let mut rounds = 0;
+    let block_rows = u8x16::splat(LINK_ROWS as u8);
+    for (d, ((((r0, r1), r2), r3), (((r4, r5), r6), r7))) in
+        later16.as_chunks_mut::<16>().0.iter_mut().zip(sixteens)
+    {
+        let mut unlinked = u8x16::ZERO;
+        for (codes, own16) in [r0, r1, r2, r3, r4, r5, r6, r7]
+            .iter()
+            .zip(own16.iter_mut())
+        {
+            let codes = u8x16::new(**codes);
+            let unlink = codes.max(bound16).simd_eq(codes);
+            unlinked -= unlink;
+            *own16 -= unlink;
+        }
+        for (d, &links) in d.iter_mut().zip(&(block_rows - unlinked).to_array()) {
+            *d += u32::from(links);
+        }
+        rounds += 1;
+        if rounds == 255 {
+            empty(&mut own16, &mut own, rounds);
+            rounds = 0;
+        }
+    }
+    empty(&mut own16, &mut own, rounds);
+    for (body, own) in bodies.iter().zip(own.iter_mut()) {
+        *own += one_by_one(body.get(chunks * 16..).unwrap_or(&[]), &mut *rest);
+    }
+    for (d, o) in density.iter_mut().skip(first).zip(own) {
+        *d += o;
+    }
 }
 
 /// Pass 2 for one row when the linking codes are those below `bound`: adds each pair's
@@ -988,12 +1148,15 @@ fn smooth(hist: &[Real; KDE_BINS], sigma_bins: Real, from: usize, to: usize) -> 
         let x = d as Real / sigma;
         *k = exp(-0.5 * x * x);
     }
+    // Only the bins within reach: farther ones would add `count · 0`, which leaves a
+    // non-negative sum as it is.
     let mut out = [0.0; KDE_BINS];
     for (b, &count) in hist.iter().enumerate().take(to).skip(from) {
         if count == 0.0 {
             continue;
         }
-        for (o, slot) in out.iter_mut().enumerate() {
+        let (near, far) = (b.saturating_sub(reach - 1), b.saturating_add(reach));
+        for (o, slot) in out.iter_mut().enumerate().take(far).skip(near) {
             let d = b.abs_diff(o);
             if let Some(k) = kernel.get(d) {
                 *slot += count * k;
@@ -1056,6 +1219,37 @@ mod tests {
         for sigma_bins in [1e30, Real::MAX, Real::INFINITY] {
             let out = smooth(&hist, sigma_bins, 0, KDE_BINS);
             assert!(out.iter().all(|&v| v == 2.0), "sigma {sigma_bins}: {out:?}");
+        }
+    }
+
+    proptest::proptest! {
+        /// The smoothing visits only the bins within the kernel's reach, and gives what
+        /// adding every bin's kernel to every bin gives, bit for bit.
+        #[test]
+        fn smoothing_within_reach_equals_smoothing_everywhere(
+            counts in proptest::collection::vec(
+                proptest::prop_oneof![3 => proptest::strategy::Just(0u32), 1 => 0u32..5000],
+                KDE_BINS,
+            ),
+            sigma_bins in proptest::prop_oneof![0.0 as Real..8.0, 8.0 as Real..200.0],
+            (from, to) in (0..KDE_BINS, 0..=KDE_BINS),
+        ) {
+            let hist: [Real; KDE_BINS] = core::array::from_fn(|b| counts[b] as Real);
+            let sigma = sigma_bins.max(0.5);
+            let reach = ((3.0 * sigma) as usize).saturating_add(1);
+            let mut kernel = [0.0 as Real; KDE_BINS];
+            for (d, k) in kernel.iter_mut().enumerate().take(reach.min(KDE_BINS)) {
+                let x = d as Real / sigma;
+                *k = exp(-0.5 * x * x);
+            }
+            let mut everywhere = [0.0 as Real; KDE_BINS];
+            for (b, &count) in hist.iter().enumerate().take(to).skip(from) {
+                for (o, slot) in everywhere.iter_mut().enumerate() {
+                    *slot += count * kernel[b.abs_diff(o)];
+                }
+            }
+            let got = smooth(&hist, sigma_bins, from, to);
+            proptest::prop_assert_eq!(got.map(Real::to_bits), everywhere.map(Real::to_bits));
         }
     }
 
@@ -1343,8 +1537,13 @@ mod tests {
                     plain[i + 1 + k] += link;
                 }
             }
-            proptest::prop_assert_eq!(plain, fast);
-
+            proptest::prop_assert_eq!(&plain, &fast);
+            // The whole pass, rows in blocks and one by one.
+            for blocks in [true, false] {
+                let mut whole = vec![0u32; n];
+                links_below(n, &bins, bound, &mut whole, blocks);
+                proptest::prop_assert_eq!(&plain, &whole, "blocks {}", blocks);
+            }
         }
 
         /// [`attach_up`] chooses what pass 3 pair by pair chooses, with densities that tie
@@ -1376,6 +1575,26 @@ mod tests {
         }
     }
 
+    /// Pass 2 in blocks of rows counts links in bytes; a row longer than 255 sixteens
+    /// (and whole rows of links) must not carry a byte.
+    #[test]
+    fn blocked_link_counts_survive_long_rows_of_links() {
+        let n = 16 * 256 + 40;
+        let len = GroupScratchLen::for_frames(n).pair_bin;
+        let bins: Vec<u8> = (0..len).map(|k| if k % 97 == 0 { 9 } else { 2 }).collect();
+        let mut plain = vec![0u32; n];
+        for (i, row) in pair_rows(n, &bins) {
+            for (k, &code) in row.iter().enumerate() {
+                let link = u32::from(code < 3);
+                plain[i] += link;
+                plain[i + 1 + k] += link;
+            }
+        }
+        let mut blocked = vec![0u32; n];
+        links_below(n, &bins, 3, &mut blocked, true);
+        assert_eq!(plain, blocked);
+    }
+
     /// A twist component: ordinary, zero, huge or not a number.
     fn component() -> impl proptest::strategy::Strategy<Value = Real> {
         use proptest::prelude::*;
@@ -1396,10 +1615,23 @@ mod tests {
         fn pass_one_codes_equal_the_pair_by_pair_codes(
             frames in proptest::collection::vec(
                 (proptest::array::uniform6(component()), 0u16..3),
-                1..40,
+                1..60,
             ),
             scale in proptest::sample::select(vec![0.05f32, 1.0]),
+            (spread, sorted) in (1u16..4, proptest::bool::ANY),
         ) {
+            // Labels in long runs too (one label, or sorted), as the frames of a scene come.
+            let mut frames = frames;
+            for f in &mut frames {
+                f.1 %= spread;
+            }
+            if sorted {
+                let mut labels: Vec<u16> = frames.iter().map(|f| f.1).collect();
+                labels.sort_unstable();
+                for (f, l) in frames.iter_mut().zip(labels) {
+                    f.1 = l;
+                }
+            }
             let n = frames.len();
             let twists: Vec<Twist> = frames
                 .iter()
@@ -1420,9 +1652,13 @@ mod tests {
             let mut lanes_buf = vec![0.0; TWIST_LANES * n];
             let lanes = fill_lanes(&twists, &mut lanes_buf);
             let mut pair_bin = vec![0u8; GroupScratchLen::for_frames(n).pair_bin];
-            for (i, row) in pair_rows_mut(n, &mut pair_bin) {
-                pair_codes(&lanes, i, (&labels32, &flags), (scale, bins_per_m), row);
+            pass_one(&lanes, (&labels32, &flags), (scale, bins_per_m), &mut pair_bin);
+            // Every row through the path that looks at labels, too.
+            let mut labelled = vec![0u8; pair_bin.len()];
+            for (i, row) in pair_rows_mut(n, &mut labelled) {
+                pair_codes::<false>(&lanes, i, (&labels32, &flags), (scale, bins_per_m), row);
             }
+            proptest::prop_assert_eq!(&labelled, &pair_bin);
             let mut expected = Vec::new();
             for i in 0..n {
                 for j in i + 1..n {

@@ -434,8 +434,9 @@ fn fill_lanes<'a>(twists: &[Twist], lanes: &'a mut [Real]) -> [&'a [Real]; TWIST
     core::array::from_fn(|c| lanes.get(c * n..(c + 1) * n).unwrap_or(&[]))
 }
 
-/// Whether [`pair_codes`] codes sixteen pairs at a time: only where `wide` has vector
-/// lanes to pack the codes with.
+/// Whether [`pair_codes`] codes sixteen pairs at a time, and pass 2 takes rows
+/// [`LINK_ROWS`] at a time ([`links_below`]): only where `wide` has vector lanes to pack
+/// the codes with.
 const SIXTEEN_PAIR_CODES: bool = cfg!(any(
     target_feature = "sse2",
     target_feature = "simd128",
@@ -803,7 +804,8 @@ const LINK_ROWS: usize = 8;
 /// lanes) rows go [`LINK_ROWS`] at a time ([`link_rows_below`]); the last rows, and every
 /// row without, one at a time ([`add_links_below`]).
 fn links_below(n: usize, pair_bin: &[u8], bound: u8, density: &mut [u32], blocks: bool) {
-    let mut rows = pair_rows(n, pair_bin);
+    // Fused: a block is pulled whole, also past the last row, which must stay `None`.
+    let mut rows = pair_rows(n, pair_bin).fuse();
     loop {
         let block: [Option<(usize, &[u8])>; LINK_ROWS] = core::array::from_fn(|_| rows.next());
         let full = matches!(block, [.., Some(_)]);
@@ -833,30 +835,28 @@ fn links_below(n: usize, pair_bin: &[u8], bound: u8, density: &mut [u32], blocks
 
 /// [`links_below`] for the rows of frames `first..first + LINK_ROWS` (`rows`, each
 /// running to the last frame). Their pairs with each sixteen later frames are compared at
-/// once, row by row, and the links summed in bytes: the later frames' sums (at most
-/// [`LINK_ROWS`]) are widened once per sixteen, and each row's own ones are kept sixteen
-/// lanes wide and emptied every 255 rounds, before a byte could carry. The pairs among the
-/// block's frames and the rows' last few pairs go one at a time.
+/// once, row by row, and the pairs that do not link counted in bytes: the later frames'
+/// counts (at most [`LINK_ROWS`]) are widened once per sixteen, and each row's own are
+/// kept sixteen lanes wide and emptied every 255 rounds, before a byte could carry. The
+/// pairs among the block's frames and the rows' last few pairs go one at a time
+/// ([`add_links_below`]).
 fn link_rows_below(first: usize, rows: [&[u8]; LINK_ROWS], bound: u8, density: &mut [u32]) {
-    // Adds the links of `codes` to `later` and returns their number.
-    let one_by_one = |codes: &[u8], later: &mut [u32]| {
-        let mut own = 0;
-        for (&code, d) in codes.iter().zip(later) {
-            let link = u32::from(code < bound);
-            *d += link;
-            own += link;
-        }
-        own
-    };
     // Pairs among the block's frames: the first `LINK_ROWS - 1 - r` of row `r`.
     let mut own = [0u32; LINK_ROWS];
     for (r, (row, own)) in rows.iter().zip(own.iter_mut()).enumerate() {
         let codes = row.get(..LINK_ROWS - 1 - r).unwrap_or(row);
-        *own += one_by_one(codes, density.get_mut(first + r + 1..).unwrap_or(&mut []));
+        *own += add_links_below(
+            codes,
+            density.get_mut(first + r + 1..).unwrap_or(&mut []),
+            bound,
+        );
     }
     // Pairs with the frames from `first + LINK_ROWS` on, sixteen at a time.
-    let bodies: [&[u8]; LINK_ROWS] =
-        core::array::from_fn(|r| rows[r].get(LINK_ROWS - 1 - r..).unwrap_or(&[]));
+    let bodies: [&[u8]; LINK_ROWS] = core::array::from_fn(|r| {
+        rows.get(r)
+            .and_then(|row| row.get(LINK_ROWS - 1 - r..))
+            .unwrap_or(&[])
+    });
     let chunks = bodies.iter().map(|b| b.len() / 16).min().unwrap_or(0);
     let later = density.get_mut(first + LINK_ROWS..).unwrap_or(&mut []);
     let (later16, rest) = later.split_at_mut((chunks * 16).min(later.len()));
@@ -900,7 +900,7 @@ fn link_rows_below(first: usize, rows: [&[u8]; LINK_ROWS], bound: u8, density: &
     }
     empty(&mut own16, &mut own, rounds);
     for (body, own) in bodies.iter().zip(own.iter_mut()) {
-        *own += one_by_one(body.get(chunks * 16..).unwrap_or(&[]), &mut *rest);
+        *own += add_links_below(body.get(chunks * 16..).unwrap_or(&[]), &mut *rest, bound);
     }
     for (d, o) in density.iter_mut().skip(first).zip(own) {
         *d += o;
@@ -1575,24 +1575,26 @@ mod tests {
         }
     }
 
-    /// Pass 2 in blocks of rows counts links in bytes; a row longer than 255 sixteens
-    /// (and whole rows of links) must not carry a byte.
+    /// Pass 2 in blocks of rows counts the pairs that do not link in bytes, emptied every
+    /// 255 sixteens: rows of nearly only such pairs, just under, at and past that length,
+    /// must not carry a byte.
     #[test]
-    fn blocked_link_counts_survive_long_rows_of_links() {
-        let n = 16 * 256 + 40;
-        let len = GroupScratchLen::for_frames(n).pair_bin;
-        let bins: Vec<u8> = (0..len).map(|k| if k % 97 == 0 { 9 } else { 2 }).collect();
-        let mut plain = vec![0u32; n];
-        for (i, row) in pair_rows(n, &bins) {
-            for (k, &code) in row.iter().enumerate() {
-                let link = u32::from(code < 3);
-                plain[i] += link;
-                plain[i + 1 + k] += link;
+    fn blocked_link_counts_survive_long_rows_without_links() {
+        for n in [16 * 255 + 8, 16 * 256 + 8, 16 * 258 + 40] {
+            let len = GroupScratchLen::for_frames(n).pair_bin;
+            let bins: Vec<u8> = (0..len).map(|k| if k % 997 == 0 { 2 } else { 9 }).collect();
+            let mut plain = vec![0u32; n];
+            for (i, row) in pair_rows(n, &bins) {
+                for (k, &code) in row.iter().enumerate() {
+                    let link = u32::from(code < 3);
+                    plain[i] += link;
+                    plain[i + 1 + k] += link;
+                }
             }
+            let mut blocked = vec![0u32; n];
+            links_below(n, &bins, 3, &mut blocked, true);
+            assert_eq!(plain, blocked, "{n} frames");
         }
-        let mut blocked = vec![0u32; n];
-        links_below(n, &bins, 3, &mut blocked, true);
-        assert_eq!(plain, blocked);
     }
 
     /// A twist component: ordinary, zero, huge or not a number.

@@ -620,13 +620,19 @@ fn grow_from_seeds(
     queue: &mut [u32],
     mut tail: usize,
 ) {
-    let (width, height) = (grid.width, grid.height);
+    let width = grid.width;
+    // One length for both maps, so one bounds check covers a pixel in both.
+    let m = (width * grid.height).min(segment.len()).min(key.len());
+    let (Some(segment), Some(key)) = (segment.get(..m), key.get_mut(..m)) else {
+        return;
+    };
+    let last_x = width.saturating_sub(1) as u32;
     let mut head = 0;
     while head < tail {
         let Some(&p) = queue.get(head) else { break };
         head += 1;
-        let (x, y) = Grid::unpack(p);
-        let i = y * width + x;
+        let x = p & 0xFFFF;
+        let i = (p >> 16) as usize * width + x as usize;
         let (Some(&seg), Some(&mine)) = (segment.get(i), key.get(i)) else {
             continue;
         };
@@ -641,19 +647,19 @@ fn grow_from_seeds(
             *k = if take { mine } else { *k };
             tail += usize::from(take);
         };
-        // Left, right, up, down: the order the queue grows in.
+        // Left, right, up, down: the order the queue grows in. A window pixel has a row
+        // above when its index is a row or more, and a row below when the index a row
+        // on lies in the window (then the lookup fails).
         if x > 0 {
             visit(i - 1, p - 1);
         }
-        if x + 1 < width {
+        if x < last_x {
             visit(i + 1, p + 1);
         }
-        if y > 0 {
+        if i >= width {
             visit(i - width, p - (1 << 16));
         }
-        if y + 1 < height {
-            visit(i + width, p + (1 << 16));
-        }
+        visit(i + width, p + (1 << 16));
     }
 }
 

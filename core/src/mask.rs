@@ -47,7 +47,7 @@
 //! (with gaps where small fragments merged away); background is `0`.
 
 use nalgebra::{Point3, Translation3};
-use wide::f32x8;
+use wide::{f32x8, i32x8};
 
 use crate::{
     Config, Error, ImageView, Intrinsics, Pose,
@@ -579,6 +579,22 @@ impl Growth {
         ((seg << 16) | decision) & 0u32.wrapping_sub((decision != 0) as u32)
     }
 
+    /// The open states of eight pixels of split segment `seg` with decisions `claims`
+    /// (`group + 1`, `0` for none; integers as floats) where `seen` (a lane mask) says
+    /// they have an observation, [`HOLE`] where not: [`Growth::open`] on each lane,
+    /// side by side.
+    fn open_lanes(seg: u32, claims: f32x8, seen: f32x8) -> [u32; PIXEL_LANES] {
+        // Exact: integers below 2^16, and `-1` (no claim is negative) for a hole.
+        let d = seen.select(claims, f32x8::splat(-1.0)).fast_trunc_int();
+        // The bits of `seg << 16` (an `i32` of the same bits).
+        let open = i32x8::splat((seg << 16) as i32);
+        let decided = (open | d) & !d.simd_eq(i32x8::ZERO);
+        d.simd_eq(i32x8::splat(-1))
+            .select(open, decided)
+            .to_array()
+            .map(|s| s as u32)
+    }
+
     /// `group + 1` of the region that claimed a pixel in state `state`, `0` if none.
     const fn claim(state: u32) -> u16 {
         if state < 1 << 16 { state as u16 } else { 0 }
@@ -796,7 +812,7 @@ struct ObservedLanes {
 
 impl ObservedLanes {
     /// The observations of eight pixels with sources `sources` (packed pixels at `t`, or
-    /// [`NONE`]), and a bit mask of the lanes that have one: as `decide_pixels`'s
+    /// [`NONE`]), and a mask of the lanes that have one: as `decide_pixels`'s
     /// per-pixel rule computes them (the same operations per lane, so the same bits), with
     /// the depth test done on all lanes at once. Lanes without an observation hold
     /// values to be dropped.
@@ -804,12 +820,12 @@ impl ObservedLanes {
         input: &MotionInput<'_>,
         (inv_fx, inv_fy): (Real, Real),
         sources: &[u32; PIXEL_LANES],
-    ) -> (Self, u32) {
+    ) -> (Self, f32x8) {
         let [u, v, z, dx, dy] = Self::source_lanes(input, sources);
         let k = input.intrinsics;
         let splat = f32x8::splat;
         // valid_depth on each lane: NaN fails both comparisons, infinities one.
-        let seen = (z.simd_gt(f32x8::ZERO) & z.simd_le(splat(MAX_DEPTH_M))).to_bitmask();
+        let seen = z.simd_gt(f32x8::ZERO) & z.simd_le(splat(MAX_DEPTH_M));
         let lanes = Self {
             p: [
                 (u - splat(k.cx)) * z * splat(inv_fx),
@@ -891,6 +907,20 @@ impl ObservedLanes {
         k: &Intrinsics,
         tol2: Real,
     ) -> [u32; PIXEL_LANES] {
+        // Exact: the claims are integers below 2^16.
+        self.best_claims(moves, k, tol2)
+            .fast_trunc_int()
+            .to_array()
+            .map(|c| c as u32)
+    }
+
+    /// [`ObservedLanes::decide`]'s decisions as floats (integers below 2^16).
+    fn best_claims(
+        &self,
+        moves: impl IntoIterator<Item = CandidateMotion>,
+        k: &Intrinsics,
+        tol2: Real,
+    ) -> f32x8 {
         let [px, py, pz] = self.p;
         let [ou, ov] = self.observed;
         let two = f32x8::splat(2.0);
@@ -931,8 +961,7 @@ impl ObservedLanes {
             best = take.select(r2, best);
             best_claim = take.select(f32x8::splat(m.claim), best_claim);
         }
-        // Exact: the claims are integers below 2^16.
-        best_claim.fast_trunc_int().to_array().map(|c| c as u32)
+        best_claim
     }
 }
 
@@ -1034,9 +1063,9 @@ fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, ke
                 }
             }
             let (lanes, seen) = ObservedLanes::gather(input, (inv_fx, inv_fy), sources);
-            let decisions = match held.motions.get(..held.len) {
-                Some(moves) => lanes.decide(moves.iter().copied(), &k, tol2),
-                None => lanes.decide(
+            let claims = match held.motions.get(..held.len) {
+                Some(moves) => lanes.best_claims(moves.iter().copied(), &k, tol2),
+                None => lanes.best_claims(
                     candidates
                         .iter()
                         .filter_map(|entry| CandidateMotion::of(entry, motions)),
@@ -1044,13 +1073,7 @@ fn decide_pixels(input: &MotionInput<'_>, cfg: &Config, regions: Regions<'_>, ke
                     tol2,
                 ),
             };
-            for (lane, (slot, &d)) in slots.iter_mut().zip(&decisions).enumerate() {
-                *slot = if seen >> lane & 1 != 0 {
-                    Growth::decided(seg, d)
-                } else {
-                    Growth::open(seg, HOLE)
-                };
-            }
+            *slots = Growth::open_lanes(seg, claims, seen);
             continue;
         }
         for (j, (&seg, &s)) in (j0..).zip(seg_chunk.iter().zip(source_chunk)) {
@@ -2798,6 +2821,23 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// Eight open states side by side are [`Growth::open`] on each lane: segments up
+        /// to `0xFFFF` (`seg << 16` past `i32::MAX`), decisions none, some and up to
+        /// `0xFFFF`, lanes with and without an observation.
+        #[test]
+        fn open_lanes_are_open_states(seed in proptest::prelude::any::<u64>()) {
+            let mut rng = crate::rng::Pcg32::new(seed);
+            let seg = [1, 2, 0x7FFF, 0x8000, 0xFFFF][rng.below(5) as usize];
+            let decisions: [u32; PIXEL_LANES] =
+                core::array::from_fn(|_| [0, 1, 2, 0xFFFE, 0xFFFF, rng.below(0x1_0000)][rng.below(6) as usize]);
+            let seen: [bool; PIXEL_LANES] = core::array::from_fn(|_| rng.below(3) != 0);
+            let claims = f32x8::new(decisions.map(|d| d as Real));
+            let mask = f32x8::new(seen.map(|s| if s { 1.0 } else { 0.0 })).simd_eq(f32x8::ONE);
+            let expected: [u32; PIXEL_LANES] =
+                core::array::from_fn(|l| Growth::open(seg, if seen[l] { decisions[l] } else { HOLE }));
+            proptest::prop_assert_eq!(Growth::open_lanes(seg, claims, mask), expected);
+        }
+
         /// Growth's eight-pixel decisions equal the scalar rule with nalgebra's
         /// `Isometry3 * Point3` and the pinhole projection, bit for bit: per pixel, the
         /// candidate with the smallest squared residual within tolerance whose moved point
@@ -2915,6 +2955,7 @@ mod tests {
             }
             let (inv_fx, inv_fy) = (1.0 / k.fx, 1.0 / k.fy);
             let (lanes, seen) = ObservedLanes::gather(&input, (inv_fx, inv_fy), &sources);
+            let seen = seen.to_bitmask();
             let [px, py, pz] = lanes.p.map(f32x8::to_array);
             let [ou, ov] = lanes.observed.map(f32x8::to_array);
             for (l, &s) in sources.iter().enumerate() {

@@ -1282,6 +1282,15 @@ fn splat(
     if grid.width == 0 {
         return;
     }
+    // One length for the three maps, so one bounds check covers a target in all three.
+    let len = depth_bits.len().min(source.len()).min(carried.len());
+    let (Some(depth_bits), Some(source), Some(carried)) = (
+        depth_bits.get_mut(..len),
+        source.get_mut(..len),
+        carried.get_mut(..len),
+    ) else {
+        return;
+    };
     let mut target = SplatTarget {
         grid,
         size: (width, height),
@@ -1436,7 +1445,12 @@ impl SplatTarget<'_> {
         let v = f32x8::splat(y as Real) + f32x8::new(flows.map(|f| f[1]));
         let (wx, in_x) = window_coordinate(u, self.grid.x0, self.grid.width);
         let (wy, in_y) = window_coordinate(v, self.grid.y0, self.grid.height);
-        let mut lanes = (has_depth & in_x & in_y).to_bitmask();
+        // Labelled lanes (background ones carry nothing), as bits.
+        let labelled = labels
+            .iter()
+            .zip(0..)
+            .fold(0, |bits, (&label, l)| bits | (u32::from(label != 0) << l));
+        let mut lanes = (has_depth & in_x & in_y).to_bitmask() & labelled;
         if lanes == 0 {
             return;
         }
@@ -1453,9 +1467,7 @@ impl SplatTarget<'_> {
             else {
                 continue;
             };
-            if label != 0 {
-                self.put((wx as usize, wy as usize), (x0 + l, y), label, z);
-            }
+            self.put((wx as usize, wy as usize), (x0 + l, y), label, z);
         }
     }
 }

@@ -1150,11 +1150,17 @@ fn label_pixels(
         .enumerate()
     {
         let static_row = grid.static_row(static_t1, y);
-        for (c, ((out_chunk, seg_chunk), key_chunk)) in out_row
-            .chunks_mut(RUN_LANES)
-            .zip(seg_row.chunks(RUN_LANES))
-            .zip(key_row.chunks_mut(RUN_LANES))
-            .enumerate()
+        // Whole chunks as arrays (no length to work out per chunk), then the row's rest.
+        let (out8, out_rest) = out_row.as_chunks_mut::<RUN_LANES>();
+        let (seg8, seg_rest) = seg_row.as_chunks::<RUN_LANES>();
+        let (key8, key_rest) = key_row.as_chunks_mut::<RUN_LANES>();
+        let chunks = out8
+            .iter_mut()
+            .zip(seg8)
+            .zip(key8.iter_mut())
+            .map(|((o, s), k)| (o.as_mut_slice(), s.as_slice(), k.as_mut_slice()));
+        for (c, (out_chunk, seg_chunk, key_chunk)) in
+            chunks.chain([(out_rest, seg_rest, key_rest)]).enumerate()
         {
             let x0 = c * RUN_LANES;
             // Inside a run (one segment, one claim), eight pixels at once; the segment's

@@ -369,8 +369,29 @@ impl Grid {
             if row.iter().fold(0, |any, &l| any | l) == 0 {
                 continue;
             }
-            let first = row.iter().position(|&l| l != 0).unwrap_or(0);
-            let last = row.iter().rposition(|&l| l != 0).unwrap_or(0);
+            // Background chunks at either end are skipped whole (a branch-free test
+            // each), then the first and last labels are found pixel by pixel.
+            let (lead, _) = row.as_chunks::<SPLAT_CHUNK>();
+            let lead = SPLAT_CHUNK
+                * lead
+                    .iter()
+                    .take_while(|c| all_background::<SPLAT_CHUNK>(c.as_slice()))
+                    .count();
+            let (_, trail) = row.as_rchunks::<SPLAT_CHUNK>();
+            let trail = SPLAT_CHUNK
+                * trail
+                    .iter()
+                    .rev()
+                    .take_while(|c| all_background::<SPLAT_CHUNK>(c.as_slice()))
+                    .count();
+            let first = row
+                .get(lead..)
+                .and_then(|r| r.iter().position(|&l| l != 0))
+                .map_or(0, |x| lead + x);
+            let last = row
+                .get(..row.len() - trail)
+                .and_then(|r| r.iter().rposition(|&l| l != 0))
+                .unwrap_or(0);
             x0 = x0.min(first);
             x1 = x1.max(last + 1);
             y0 = y0.min(y);
@@ -2718,6 +2739,49 @@ mod tests {
             );
             proptest::prop_assert_eq!(a, b);
             proptest::prop_assert_eq!(windowed, whole);
+        }
+    }
+
+    proptest::proptest! {
+        /// The foreground's window is the bounding box of the non-zero labels, pixel by
+        /// pixel: widths past several 16-label chunks, a few labels anywhere (at row ends
+        /// and chunk edges too), strided views, empty images.
+        #[test]
+        fn the_window_is_the_bounding_box_of_the_labels(seed in proptest::prelude::any::<u64>()) {
+            let mut rng = crate::rng::Pcg32::new(seed);
+            let (w, h) = (1 + rng.below(80) as usize, 1 + rng.below(8) as usize);
+            let stride = w + rng.below(3) as usize;
+            let mut labels = vec![0u16; stride * h];
+            for _ in 0..rng.below(5) {
+                let x = match rng.below(4) {
+                    0 => 0,
+                    1 => w - 1,
+                    _ => rng.below(w as u32) as usize,
+                };
+                labels[rng.below(h as u32) as usize * stride + x] = 1 + rng.below(3) as u16;
+            }
+            // Past each row's end: never read.
+            for y in 0..h {
+                for x in w..stride {
+                    labels[y * stride + x] = 9;
+                }
+            }
+            let view = ImageView::new(w, h, stride, &labels).unwrap();
+            let grid = Grid::of_foreground(&view);
+            let on: Vec<(usize, usize)> = (0..h)
+                .flat_map(|y| (0..w).map(move |x| (x, y)))
+                .filter(|&(x, y)| labels[y * stride + x] != 0)
+                .collect();
+            let expected = match (on.iter().map(|p| p.0).min(), on.iter().map(|p| p.1).min()) {
+                (Some(x0), Some(y0)) => (
+                    x0,
+                    y0,
+                    on.iter().map(|p| p.0).max().unwrap() + 1 - x0,
+                    on.iter().map(|p| p.1).max().unwrap() + 1 - y0,
+                ),
+                _ => (0, 0, 0, 0),
+            };
+            proptest::prop_assert_eq!((grid.x0, grid.y0, grid.width, grid.height), expected);
         }
     }
 

@@ -1351,23 +1351,20 @@ fn splat(
                     continue;
                 };
                 let mut x = x0;
-                for ((labels, depths), flows) in labels
-                    .chunks(SPLAT_LANES)
-                    .zip(depths.chunks(SPLAT_LANES))
-                    .zip(flows.chunks(SPLAT_LANES))
-                {
-                    if let (Ok(l), Ok(d), Ok(f)) =
-                        (labels.try_into(), depths.try_into(), flows.try_into())
-                    {
-                        target.eight(x, y, l, d, f);
-                    } else {
-                        for (i, ((&label, &z), &flow)) in
-                            labels.iter().zip(depths).zip(flows).enumerate()
-                        {
-                            target.pixel(x + i, y, label, z, flow);
-                        }
-                    }
+                let (labels8, labels_rest) = labels.as_chunks::<SPLAT_LANES>();
+                let (depths8, depths_rest) = depths.as_chunks::<SPLAT_LANES>();
+                let (flows8, flows_rest) = flows.as_chunks::<SPLAT_LANES>();
+                for ((l, d), f) in labels8.iter().zip(depths8).zip(flows8) {
+                    target.eight(x, y, l, d, f);
                     x += SPLAT_LANES;
+                }
+                for (i, ((&label, &z), &flow)) in labels_rest
+                    .iter()
+                    .zip(depths_rest)
+                    .zip(flows_rest)
+                    .enumerate()
+                {
+                    target.pixel(x + i, y, label, z, flow);
                 }
             }
         }

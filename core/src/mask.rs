@@ -372,24 +372,24 @@ impl Grid {
             // Background chunks at either end are skipped whole (a branch-free test
             // each), then the first and last labels are found pixel by pixel.
             let (lead, _) = row.as_chunks::<SPLAT_CHUNK>();
-            let lead = SPLAT_CHUNK
+            let lead_px = SPLAT_CHUNK
                 * lead
                     .iter()
                     .take_while(|c| all_background::<SPLAT_CHUNK>(c.as_slice()))
                     .count();
             let (_, trail) = row.as_rchunks::<SPLAT_CHUNK>();
-            let trail = SPLAT_CHUNK
+            let trail_px = SPLAT_CHUNK
                 * trail
                     .iter()
                     .rev()
                     .take_while(|c| all_background::<SPLAT_CHUNK>(c.as_slice()))
                     .count();
             let first = row
-                .get(lead..)
+                .get(lead_px..)
                 .and_then(|r| r.iter().position(|&l| l != 0))
-                .map_or(0, |x| lead + x);
+                .map_or(0, |x| lead_px + x);
             let last = row
-                .get(..row.len() - trail)
+                .get(..row.len().saturating_sub(trail_px))
                 .and_then(|r| r.iter().rposition(|&l| l != 0))
                 .unwrap_or(0);
             x0 = x0.min(first);
@@ -658,7 +658,10 @@ fn grow_from_seeds(
     mut tail: usize,
 ) {
     let width = grid.width;
-    // One length for both maps, so one bounds check covers a pixel in both.
+    // One length for both maps, so one bounds check covers a pixel in both. Cut to the
+    // window, the maps also end the growth at its last row: a pixel there has no row below
+    // because the lookup a row on fails (and `p + (1 << 16)` stays in range, the height
+    // being at most `MAX_SIDE_PX`).
     let m = (width * grid.height).min(segment.len()).min(key.len());
     let (Some(segment), Some(key)) = (segment.get(..m), key.get_mut(..m)) else {
         return;
@@ -685,15 +688,15 @@ fn grow_from_seeds(
             tail += usize::from(take);
         };
         // Left, right, up, down: the order the queue grows in. A window pixel has a row
-        // above when its index is a row or more, and a row below when the index a row
-        // on lies in the window (then the lookup fails).
+        // above when its packed row is not 0, and a row below when the index a row on
+        // lies in the window (otherwise the lookup fails).
         if x > 0 {
             visit(i - 1, p - 1);
         }
         if x < last_x {
             visit(i + 1, p + 1);
         }
-        if i >= width {
+        if p >= 1 << 16 {
             visit(i - width, p - (1 << 16));
         }
         visit(i + width, p + (1 << 16));
@@ -1180,8 +1183,9 @@ fn label_pixels(
             .zip(seg8)
             .zip(key8.iter_mut())
             .map(|((o, s), k)| (o.as_mut_slice(), s.as_slice(), k.as_mut_slice()));
-        for (c, (out_chunk, seg_chunk, key_chunk)) in
-            chunks.chain([(out_rest, seg_rest, key_rest)]).enumerate()
+        for (c, (out_chunk, seg_chunk, key_chunk)) in chunks
+            .chain((!seg_rest.is_empty()).then_some((out_rest, seg_rest, key_rest)))
+            .enumerate()
         {
             let x0 = c * RUN_LANES;
             // Inside a run (one segment, one claim), eight pixels at once; the segment's
@@ -1371,7 +1375,8 @@ fn splat(
     }
 }
 
-/// Pixels of a label row [`splat`] skips at once when all are background.
+/// Pixels of a label row [`splat`] skips at once when all are background (and the
+/// foreground window's scan, at either end of a row).
 const SPLAT_CHUNK: usize = 16;
 
 /// Pixels of a label row [`splat`] tests first, as one branch-free test (it vectorises):

@@ -255,11 +255,13 @@ pub(crate) fn create_frames_with_twists(
 
     let mut count = 0;
     let mut scratch = TriangleScratch::new();
+    let mut packed = [0; PACKED_ON_STACK];
+    let packed = pack_keys(samples, input.size().0, &mut packed);
     for (i, origin) in samples.iter().enumerate() {
         if !origin.tracked() {
             continue;
         }
-        let Some(frame) = build_frame(input, cfg, samples, i, &mut scratch) else {
+        let Some(frame) = build_frame(input, cfg, samples, packed, i, &mut scratch) else {
             continue;
         };
         let Some(twist) = frame.twist(&space_origin) else {
@@ -586,15 +588,52 @@ fn bilinear_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, edge_m: Real) ->
     Some(top + (bottom - top) * fy)
 }
 
-/// The frame with origin `samples[i]`, or `None` if no good triangle exists.
+/// Samples whose [`packed_key`]s [`create_frames`] keeps on its stack (4 bytes each) for
+/// [`build_frame`]'s scan, which then reads four keys a vector instead of one sample's
+/// [`column_key`] at a time; past this many samples it reads the samples.
+const PACKED_ON_STACK: usize = 1024;
+
+/// Columns a [`packed_key`] holds: images wider than this are scanned by sample.
+const PACKED_COLUMNS: usize = 1 << 15;
+
+/// A sample's column `x` (below [`PACKED_COLUMNS`]) in the low half and its label in the
+/// high half; label zero (no origin has it) if the flow lost the point. For `x_lo` and
+/// `span` below 2¹⁵, `packed_key(x, l) - packed_key(x_lo, k) <= span` (wrapping) holds
+/// exactly when `l == k` and `x - x_lo <= span` (wrapping) do: a different label moves
+/// the difference by a multiple of 2¹⁶ that leaves it between 2¹⁵ and 2³², unwrapped.
+const fn packed_key(x: u32, label: u16) -> u32 {
+    x | (label as u32) << 16
+}
+
+/// The [`packed_key`]s of `samples`, written to the front of `packed`; `None` if they do
+/// not fit it or the image is wider than [`PACKED_COLUMNS`].
+fn pack_keys<'p>(
+    samples: &[FrameSample],
+    width: usize,
+    packed: &'p mut [u32],
+) -> Option<&'p [u32]> {
+    if width > PACKED_COLUMNS {
+        return None;
+    }
+    let packed = packed.get_mut(..samples.len())?;
+    for (key, s) in packed.iter_mut().zip(samples) {
+        let label = if s.tracked() { s.label() } else { 0 };
+        *key = packed_key(s.px[0], label);
+    }
+    Some(packed)
+}
+
+/// The frame with origin `samples[i]`, or `None` if no good triangle exists; `packed`
+/// holds the samples' [`packed_key`]s if [`pack_keys`] could write them.
 fn build_frame(
     input: &MotionInput<'_>,
     cfg: &Config,
     samples: &[FrameSample],
+    packed: Option<&[u32]>,
     i: usize,
     scratch: &mut TriangleScratch,
 ) -> Option<BodyFrame> {
-    build_frame_listing::<LISTED_ON_STACK>(input, cfg, samples, i, scratch)
+    build_frame_listing::<LISTED_ON_STACK>(input, cfg, samples, packed, i, scratch)
 }
 
 /// Scratch of [`build_frame`] for the candidates of one origin, on the stack of
@@ -627,6 +666,7 @@ fn build_frame_listing<const CAP: usize>(
     input: &MotionInput<'_>,
     cfg: &Config,
     samples: &[FrameSample],
+    packed: Option<&[u32]>,
     i: usize,
     scratch: &mut TriangleScratch,
 ) -> Option<BodyFrame> {
@@ -655,26 +695,45 @@ fn build_frame_listing<const CAP: usize>(
     let candidate = |s: &FrameSample| (s.px[0].wrapping_sub(x_lo) <= x_span) & (s.key() == key);
     // The window's candidates, listed without a branch per sample (the column test is a
     // coin flip for the branch predictor), in two runs around the origin's place (no
-    // other sample has its pixel). A write at `CAP` wraps and overwrites the first entry
-    // (the mask only spares a bounds check); such a list is not used. Window places fit
-    // `u16` (checked first).
+    // other sample has its pixel): from the packed keys where there are some, else from
+    // the samples. A write at `CAP` wraps and overwrites the first entry (the mask only
+    // spares a bounds check); such a list is not used. Window places fit `u16` (checked
+    // first).
     if window.len() <= 1 << 16 {
         let own = i.wrapping_sub(first).min(window.len());
-        let (before, from_own) = window.split_at(own);
-        let after = from_own.get(1..).unwrap_or(&[]);
-        let runs = [(0, before), (own + 1, after)];
-        let count = if x_lo < COLUMN_KEY_EXACT_BELOW && x_span < COLUMN_KEY_EXACT_BELOW {
+        let count = if let Some(keys) = packed.and_then(|p| p.get(first..last)) {
+            // Below `PACKED_COLUMNS` every column and `x_lo` are; so is the span clipped.
+            let base = packed_key(x_lo, o.label());
+            let span = x_span.min(PACKED_COLUMNS as u32 - 1);
+            let one = |k: &u32| k.wrapping_sub(base) <= span;
+            if KEY_LANES {
+                let (base, span) = (u32x4::splat(base), u32x4::splat(span));
+                list::<CAP, _>(around(keys, own), window, scratch, one, |f| {
+                    packed_bits(f, base, span)
+                })
+            } else {
+                list::<CAP, _>(around(keys, own), window, scratch, one, |f| {
+                    four_bits(f, one)
+                })
+            }
+        } else if x_lo < COLUMN_KEY_EXACT_BELOW && x_span < COLUMN_KEY_EXACT_BELOW {
             let (base, span) = (column_key(x_lo, key), u64::from(x_span));
             let one = |s: &FrameSample| s.column_key.wrapping_sub(base) <= span;
             if KEY_LANES {
                 let low = u32x4::new([x_lo, key, x_lo, key]);
                 let limit = u32x4::new([x_span, 0, x_span, 0]);
-                list::<CAP>(runs, scratch, one, |f| keyed_bits(f, low, limit))
+                list::<CAP, _>(around(window, own), window, scratch, one, |f| {
+                    keyed_bits(f, low, limit)
+                })
             } else {
-                list::<CAP>(runs, scratch, one, |f| four_bits(f, one))
+                list::<CAP, _>(around(window, own), window, scratch, one, |f| {
+                    four_bits(f, one)
+                })
             }
         } else {
-            list::<CAP>(runs, scratch, candidate, |f| four_bits(f, candidate))
+            list::<CAP, _>(around(window, own), window, scratch, candidate, |f| {
+                four_bits(f, candidate)
+            })
         };
         // At `CAP` the next write already wrapped.
         if count < CAP {
@@ -688,28 +747,38 @@ fn build_frame_listing<const CAP: usize>(
     )
 }
 
-/// Writes the places of the samples of `runs` (each with its first place) that pass
-/// `candidate` to `scratch.listed`, and their points at `t` to `scratch.kept`, in order;
-/// returns how many passed. The test runs without a branch per sample: the results of a
-/// word of [`WORD_BITS`] samples are packed first, then only its set bits are visited. A
-/// write at `CAP` wraps (see [`build_frame_listing`]).
+/// `all` in two runs with their first places, before and after place `own`, which is
+/// left out.
+fn around<T>(all: &[T], own: usize) -> [(usize, &[T]); 2] {
+    let (before, from_own) = all.split_at(own.min(all.len()));
+    let after = from_own.get(1..).unwrap_or(&[]);
+    [(0, before), (own + 1, after)]
+}
+
+/// Writes the places of the entries of `runs` (each with its first place in `window`:
+/// the samples or their keys) that pass `candidate` to `scratch.listed`, and the points
+/// at `t` of those samples to `scratch.kept`, in order; returns how many passed. The test
+/// runs without a branch per entry: the results of a word of [`WORD_BITS`] entries are
+/// packed first, then only its set bits are visited. A write at `CAP` wraps (see
+/// [`build_frame_listing`]).
 #[inline]
-fn list<const CAP: usize>(
-    runs: [(usize, &[FrameSample]); 2],
+fn list<const CAP: usize, T>(
+    runs: [(usize, &[T]); 2],
+    window: &[FrameSample],
     scratch: &mut TriangleScratch,
-    candidate: impl Fn(&FrameSample) -> bool,
-    four: impl Fn(&[FrameSample; 4]) -> usize,
+    candidate: impl Fn(&T) -> bool,
+    four: impl Fn(&[T; 4]) -> usize,
 ) -> usize {
     let mut count = 0;
     for (start, run) in runs {
         let (words, rest) = run.as_chunks::<WORD_BITS>();
         for (first, word) in (start..).step_by(WORD_BITS).zip(words) {
             let bits = candidate_bits(word, &candidate, &four);
-            count = emit::<CAP>(scratch, count, first, bits, |b| word.get(b % WORD_BITS));
+            count = emit::<CAP>(scratch, count, first, bits, window);
         }
         let first = start + words.len() * WORD_BITS;
         let bits = candidate_bits(rest, &candidate, &four);
-        count = emit::<CAP>(scratch, count, first, bits, |b| rest.get(b));
+        count = emit::<CAP>(scratch, count, first, bits, window);
     }
     count
 }
@@ -720,10 +789,10 @@ const WORD_BITS: usize = usize::BITS as usize;
 /// Bit `b` set when `chunk[b]` (at most [`WORD_BITS`] samples) passes `candidate`;
 /// `four` gives the bits of four samples at once (the first in bit 0).
 #[inline]
-fn candidate_bits(
-    chunk: &[FrameSample],
-    candidate: impl Fn(&FrameSample) -> bool,
-    four: impl Fn(&[FrameSample; 4]) -> usize,
+fn candidate_bits<T>(
+    chunk: &[T],
+    candidate: impl Fn(&T) -> bool,
+    four: impl Fn(&[T; 4]) -> usize,
 ) -> usize {
     // Each sample enters at the top and moves down as the later ones enter.
     let (fours, rest) = chunk.as_chunks::<4>();
@@ -738,7 +807,7 @@ fn candidate_bits(
 
 /// The bits of four samples (the first in bit 0), each tested by `candidate`.
 #[inline]
-fn four_bits([a, b, c, d]: &[FrameSample; 4], candidate: impl Fn(&FrameSample) -> bool) -> usize {
+fn four_bits<T>([a, b, c, d]: &[T; 4], candidate: impl Fn(&T) -> bool) -> usize {
     let bit = |s| usize::from(candidate(s));
     bit(a) | bit(b) << 1 | bit(c) << 2 | bit(d) << 3
 }
@@ -769,6 +838,14 @@ fn keyed_bits([a, b, c, d]: &[FrameSample; 4], low: u32x4, limit: u32x4) -> usiz
     pair(a, b) | pair(c, d) << 2
 }
 
+/// [`four_bits`] for the [`packed_key`] test, on lanes: a key less `base` must be at
+/// most `span`, wrapping.
+#[inline]
+fn packed_bits(keys: &[u32; 4], base: u32x4, span: u32x4) -> usize {
+    let outside = (u32x4::new(*keys) - base).simd_gt(span);
+    !outside.to_bitmask() as usize & 0b1111
+}
+
 /// For the lanes of two samples that failed [`keyed_bits`]' test (bits 0 and 1 the first
 /// sample's, 2 and 3 the second's), which samples pass (bit 0 the first).
 const PAIR_INSIDE: [u8; 16] = {
@@ -781,15 +858,15 @@ const PAIR_INSIDE: [u8; 16] = {
     table
 };
 
-/// Lists sample `at(b)` (place `first + b`) for each set bit `b` of `bits`, from the
-/// lowest, at `count` onwards ([`list`]); returns the new count.
+/// Lists sample `window[first + b]` for each set bit `b` of `bits`, from the lowest, at
+/// `count` onwards ([`list`]); returns the new count.
 #[inline]
-fn emit<'s, const CAP: usize>(
+fn emit<const CAP: usize>(
     scratch: &mut TriangleScratch,
     mut count: usize,
     first: usize,
     mut bits: usize,
-    at: impl Fn(usize) -> Option<&'s FrameSample>,
+    window: &[FrameSample],
 ) -> usize {
     let TriangleScratch {
         listed,
@@ -799,7 +876,9 @@ fn emit<'s, const CAP: usize>(
     while bits != 0 {
         let b = bits.trailing_zeros() as usize;
         bits &= bits - 1;
-        let Some(s) = at(b) else { break };
+        let Some(s) = window.get(first + b) else {
+            break;
+        };
         let slot = count & (CAP - 1);
         listed[slot] = (first + b) as u16;
         xs[slot] = s.p_t.x;
@@ -1381,6 +1460,55 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// [`packed_key`]'s single compare is the column test and the label test, and
+        /// [`packed_bits`] (four keys a vector) passes the keys it passes, near the edges
+        /// of the range below [`PACKED_COLUMNS`], for columns below `x_lo` and for labels
+        /// that differ a little or a lot.
+        #[test]
+        fn packed_key_compare_is_the_column_and_label_tests(
+            x_lo in proptest::prop_oneof![0u32..100, (1u32 << 15) - 100..1 << 15],
+            x_span in proptest::prop_oneof![0u32..100, (1u32 << 15) - 100..1 << 15],
+            dx in proptest::array::uniform4(-200i64..200),
+            far in proptest::array::uniform4(proptest::option::weighted(0.2, 0u32..1 << 15)),
+            labels in proptest::array::uniform4(
+                proptest::prop_oneof![0u16..3, u16::MAX - 2..=u16::MAX]
+            ),
+            label in proptest::prop_oneof![1u16..3, u16::MAX - 2..=u16::MAX],
+        ) {
+            let columns: [u32; 4] = core::array::from_fn(|i| {
+                far[i].unwrap_or_else(|| {
+                    (i64::from(x_lo) + dx[i]).clamp(0, (1 << 15) - 1) as u32
+                })
+            });
+            let keys: [u32; 4] = core::array::from_fn(|i| packed_key(columns[i], labels[i]));
+            let base = packed_key(x_lo, label);
+            let one = |k: &u32| k.wrapping_sub(base) <= x_span;
+            for i in 0..4 {
+                let two = columns[i].wrapping_sub(x_lo) <= x_span && labels[i] == label;
+                proptest::prop_assert_eq!(one(&keys[i]), two, "key {}", i);
+            }
+            proptest::prop_assert_eq!(
+                packed_bits(&keys, u32x4::splat(base), u32x4::splat(x_span)),
+                four_bits(&keys, one)
+            );
+        }
+    }
+
+    #[test]
+    fn keys_are_packed_only_when_they_fit() {
+        let mut samples = [FrameSample::EMPTY; 3];
+        samples[1].px = [(1 << 15) - 1, 4];
+        samples[1].column_key = column_key((1 << 15) - 1, 7);
+        let mut keys = [0; 3];
+        assert_eq!(
+            pack_keys(&samples, 1 << 15, &mut keys),
+            Some(&[0, packed_key((1 << 15) - 1, 7), 0][..])
+        );
+        assert_eq!(pack_keys(&samples, (1 << 15) + 1, &mut keys), None);
+        assert_eq!(pack_keys(&samples, 8, &mut keys[..2]), None);
+    }
+
+    proptest::proptest! {
         /// [`keyed_bits`] (two samples a vector) passes exactly the samples that
         /// [`column_key`]'s one compare passes, near the range's edges, for columns that
         /// wrap below `x_lo` and for keys that differ a little or a lot.
@@ -1462,16 +1590,25 @@ mod tests {
             let cfg = Config::PAPER;
             // One scratch for every origin and both capacities, as in `create_frames`.
             let mut scratch = TriangleScratch::new();
+            // The scan over packed keys, and over the samples (as past `PACKED_ON_STACK`).
+            let mut keys = [0; PACKED_ON_STACK];
+            let packed = pack_keys(&samples, 1, &mut keys);
+            proptest::prop_assert!(packed.is_some());
             for i in 0..samples.len() {
                 let plain = build_frame_plain(&input, &cfg, &samples, i);
-                proptest::prop_assert_eq!(
-                    build_frame(&input, &cfg, &samples, i, &mut scratch), plain, "origin {}", i
-                );
-                proptest::prop_assert_eq!(
-                    build_frame_listing::<8>(&input, &cfg, &samples, i, &mut scratch),
-                    plain,
-                    "origin {} (capacity 8)", i
-                );
+                for packed in [packed, None] {
+                    let how = if packed.is_some() { "packed" } else { "by sample" };
+                    proptest::prop_assert_eq!(
+                        build_frame(&input, &cfg, &samples, packed, i, &mut scratch),
+                        plain,
+                        "origin {} ({})", i, how
+                    );
+                    proptest::prop_assert_eq!(
+                        build_frame_listing::<8>(&input, &cfg, &samples, packed, i, &mut scratch),
+                        plain,
+                        "origin {} (capacity 8, {})", i, how
+                    );
+                }
                 let o = &samples[i];
                 let same = |s: &&FrameSample| {
                     s.tracked() && s.label() == o.label() && s.px != o.px

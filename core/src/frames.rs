@@ -31,7 +31,7 @@ use crate::{
     Config, Error, ImageView, Intrinsics, Twist,
     error::{Buffer, check_len},
     image::{MAX_DEPTH_M, valid_depth},
-    math::{Real, floor_to_i64, sqrt4},
+    math::{Real, sqrt4},
     rng::Pcg32,
     se3::{spatial_twist, try_frame_from_points},
 };
@@ -497,7 +497,8 @@ fn local_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, cfg: &Config) -> Op
     if r == 0 {
         return Some(z_ref);
     }
-    let (xc, yc) = (floor_to_i64(u + 0.5), floor_to_i64(v + 0.5));
+    // `u` and `v` are finite and not negative here: truncation rounds down.
+    let (xc, yc) = ((u + 0.5) as i64, (v + 0.5) as i64);
     let tol = cfg.depth_window_tol_m;
     // The window clipped to the image.
     let (width, height) = depth.size();
@@ -568,18 +569,25 @@ fn bilinear_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, edge_m: Real) ->
     if !(u.is_finite() && v.is_finite()) || u < 0.0 || v < 0.0 {
         return None;
     }
-    let (x0, y0) = (floor_to_i64(u), floor_to_i64(v));
-    // Exact below 2^63; from there on no pixel is found anyway.
+    // Not negative: truncation rounds down (and saturates far outside any image).
+    let (x0, y0) = (u as usize, v as usize);
+    // Exact below 2^64; from there on no pixel is found anyway.
     let (fx, fy) = (u - x0 as Real, v - y0 as Real);
     // At the last row/column the far neighbour has zero weight; reuse the near one.
     let x1 = if fx > 0.0 { x0.saturating_add(1) } else { x0 };
     let y1 = if fy > 0.0 { y0.saturating_add(1) } else { y0 };
-    let z00 = valid_depth(depth.at(x0, y0)?)?;
-    let z10 = valid_depth(depth.at(x1, y0)?)?;
-    let z01 = valid_depth(depth.at(x0, y1)?)?;
-    let z11 = valid_depth(depth.at(x1, y1)?)?;
-    let lo = z00.min(z10).min(z01).min(z11);
-    let hi = z00.max(z10).max(z01).max(z11);
+    let (row0, row1) = (depth.row(y0)?, depth.row(y1)?);
+    let z00 = valid_depth(*row0.get(x0)?)?;
+    let z10 = valid_depth(*row0.get(x1)?)?;
+    let z01 = valid_depth(*row1.get(x0)?)?;
+    let z11 = valid_depth(*row1.get(x1)?)?;
+    // Readings are never NaN: plain comparisons pick as `min` and `max` do.
+    let (min, max) = (
+        |a: Real, b: Real| if b < a { b } else { a },
+        |a: Real, b: Real| if b > a { b } else { a },
+    );
+    let lo = min(min(min(z00, z10), z01), z11);
+    let hi = max(max(max(z00, z10), z01), z11);
     if hi - lo > edge_m {
         return None;
     }
@@ -1622,6 +1630,86 @@ mod tests {
         }
     }
 
+    /// `x` rounded down, as the plain references index pixels (saturating; NaN gives 0).
+    fn floor(x: Real) -> i64 {
+        libm::floorf(x) as i64
+    }
+
+    /// [`bilinear_depth`] as it was before it read rows: `floor`, `at`, `min` and `max`.
+    fn bilinear_depth_plain(
+        depth: &ImageView<'_, f32>,
+        u: Real,
+        v: Real,
+        edge_m: Real,
+    ) -> Option<Real> {
+        if !(u.is_finite() && v.is_finite()) || u < 0.0 || v < 0.0 {
+            return None;
+        }
+        let (x0, y0) = (floor(u), floor(v));
+        let (fx, fy) = (u - x0 as Real, v - y0 as Real);
+        let x1 = if fx > 0.0 { x0.saturating_add(1) } else { x0 };
+        let y1 = if fy > 0.0 { y0.saturating_add(1) } else { y0 };
+        let z00 = valid_depth(depth.at(x0, y0)?)?;
+        let z10 = valid_depth(depth.at(x1, y0)?)?;
+        let z01 = valid_depth(depth.at(x0, y1)?)?;
+        let z11 = valid_depth(depth.at(x1, y1)?)?;
+        let lo = z00.min(z10).min(z01).min(z11);
+        let hi = z00.max(z10).max(z01).max(z11);
+        if hi - lo > edge_m {
+            return None;
+        }
+        let top = z00 + (z10 - z00) * fx;
+        let bottom = z01 + (z11 - z01) * fx;
+        Some(top + (bottom - top) * fy)
+    }
+
+    proptest::proptest! {
+        // Cheap cases, and a neighbour alone past the edge limit is a rare draw.
+        #![proptest_config(proptest::test_runner::Config::with_cases(4096))]
+        /// [`bilinear_depth`] gives the plain one's depth bit for bit at any position
+        /// (any bits, or near and past the image's edges) and edge limit, with holes and
+        /// absurd readings among the neighbours.
+        #[test]
+        fn bilinear_depth_is_the_plain_one(
+            width in 1usize..6,
+            cells in proptest::collection::vec((0u8..12, -3i8..=3), 1..36),
+            at in proptest::array::uniform2(proptest::prop_oneof![
+                3 => -0.2f32..1.2,
+                1 => proptest::num::f32::ANY,
+                1 => proptest::sample::select(vec![0.0f32, -0.0, 0.2, 0.5, 1.0]),
+            ]),
+            edge_steps in proptest::prop_oneof![0u8..4, proptest::strategy::Just(255)],
+        ) {
+            let height = cells.len() / width;
+            proptest::prop_assume!(height > 0);
+            // Readings a few millimetre steps apart, so that the edge limit decides often.
+            let depth: std::vec::Vec<f32> = cells[..width * height]
+                .iter()
+                .map(|&(kind, step)| match kind {
+                    0 => 0.0,
+                    1 => f32::NAN,
+                    2 => 1e3,
+                    _ => 0.6 + f32::from(step) * 0.001,
+                })
+                .collect();
+            let depth = ImageView::packed(width, height, &depth).unwrap();
+            // Positions mostly in or just past the image, in pixels.
+            let scale = |t: f32, size: usize| {
+                if (-0.2..=1.2).contains(&t) { t * size as f32 } else { t }
+            };
+            let (u, v) = (scale(at[0], width), scale(at[1], height));
+            let edge_m = if edge_steps == 255 {
+                f32::INFINITY
+            } else {
+                f32::from(edge_steps) * 0.001
+            };
+            proptest::prop_assert_eq!(
+                bilinear_depth(&depth, u, v, edge_m).map(f32::to_bits),
+                bilinear_depth_plain(&depth, u, v, edge_m).map(f32::to_bits)
+            );
+        }
+    }
+
     /// [`local_depth`] as it was before the sums became lanes: one sum per variable, every
     /// depth tested with [`valid_depth`].
     fn local_depth_plain(
@@ -1630,9 +1718,9 @@ mod tests {
         v: Real,
         cfg: &Config,
     ) -> Option<Real> {
-        let z_ref = bilinear_depth(depth, u, v, cfg.depth_edge_m)?;
+        let z_ref = bilinear_depth_plain(depth, u, v, cfg.depth_edge_m)?;
         let r = cfg.depth_window_px as i64;
-        let (xc, yc) = (floor_to_i64(u + 0.5), floor_to_i64(v + 0.5));
+        let (xc, yc) = (floor(u + 0.5), floor(v + 0.5));
         let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         let (mut sz, mut sxz, mut syz) = (0.0, 0.0, 0.0);
         for y in yc - r..=yc + r {

@@ -641,7 +641,7 @@ fn build_frame(
     i: usize,
     scratch: &mut TriangleScratch,
 ) -> Option<BodyFrame> {
-    build_frame_listing::<LISTED_ON_STACK>(input, cfg, samples, packed, i, scratch)
+    build_frame_listing::<LISTED_ON_STACK, { !LANES }>(input, cfg, samples, packed, i, scratch)
 }
 
 /// Scratch of [`build_frame`] for the candidates of one origin, on the stack of
@@ -668,9 +668,10 @@ impl TriangleScratch {
 }
 
 /// [`build_frame`], listing fewer than `CAP` candidates (a power of two, at most
-/// [`LISTED_ON_STACK`]) before it falls back to [`best_triangle`]; tests use a small
-/// `CAP` to reach the fallback.
-fn build_frame_listing<const CAP: usize>(
+/// [`LISTED_ON_STACK`]) before it falls back to [`best_triangle`], and pruning the third
+/// point's candidates if `PRUNE` ([`third_point_of_kept`]); tests use a small `CAP` to
+/// reach the fallback, and both ways of the third point's pass.
+fn build_frame_listing<const CAP: usize, const PRUNE: bool>(
     input: &MotionInput<'_>,
     cfg: &Config,
     samples: &[FrameSample],
@@ -745,7 +746,7 @@ fn build_frame_listing<const CAP: usize>(
         };
         // At `CAP` the next write already wrapped.
         if count < CAP {
-            return best_triangle_listed(o, window, count, scratch, cfg);
+            return best_triangle_listed::<PRUNE>(o, window, count, scratch, cfg);
         }
     }
     best_triangle(
@@ -820,17 +821,16 @@ fn four_bits<T>([a, b, c, d]: &[T; 4], candidate: impl Fn(&T) -> bool) -> usize 
     bit(a) | bit(b) << 1 | bit(c) << 2 | bit(d) << 3
 }
 
-/// Whether [`build_frame`] tests the column keys of samples on vector lanes, two at a
-/// time: only where `wide` has lanes (elsewhere it would run them one by one) and the
-/// low half of a `u64` comes first.
-const KEY_LANES: bool = cfg!(all(
-    target_endian = "little",
-    any(
-        target_feature = "sse2",
-        target_feature = "simd128",
-        target_feature = "neon"
-    )
+/// Whether `wide` has vector lanes on this target (elsewhere it runs them one by one).
+const LANES: bool = cfg!(any(
+    target_feature = "sse2",
+    target_feature = "simd128",
+    target_feature = "neon"
 ));
+
+/// Whether [`build_frame`] tests the column keys of samples on vector lanes, two at a
+/// time: only where there are [`LANES`] and the low half of a `u64` comes first.
+const KEY_LANES: bool = LANES && cfg!(target_endian = "little");
 
 /// [`four_bits`] for the [`column_key`] test, on lanes: a sample's key as its two 32-bit
 /// halves (column, key) less `low` (`x_lo`, the key) must be at most `limit` (the
@@ -904,13 +904,13 @@ const LISTED_ON_STACK: usize = 512;
 const _: () = assert!(LISTED_ON_STACK.is_power_of_two());
 
 /// Relative slack on the bound `|a|·|b|` of a triangle's doubled area `|a × b|` in
-/// [`best_triangle_listed`]: far above the few units in the last place by which the
+/// [`third_point_of_kept`]: far above the few units in the last place by which the
 /// rounded cross product's norm can exceed the rounded product of the norms.
 const AREA_BOUND_SLACK: Real = 1.001;
-/// Smallest side and bound [`best_triangle_listed`] prunes with: below it, rounding
+/// Smallest side and bound [`third_point_of_kept`] prunes with: below it, rounding
 /// near the subnormals is no longer relative, and every candidate is computed.
 const AREA_BOUND_MIN: Real = 1e-15;
-/// Largest bound [`best_triangle_listed`] prunes with: above it, the squares inside the
+/// Largest bound [`third_point_of_kept`] prunes with: above it, the squares inside the
 /// norms could overflow.
 const AREA_BOUND_MAX: Real = 1e18;
 
@@ -928,8 +928,8 @@ fn prunable(dj: Real, db: Real) -> bool {
 /// at a time, finds the second point and drops the candidates outside the side limits,
 /// the other looks for the third point among the rest, four at a time too. Each lane
 /// keeps the earliest of its best; the earliest of the lanes' equal best wins, as a scan
-/// in order picks.
-fn best_triangle_listed(
+/// in order picks. `PRUNE` as [`third_point_of_kept`].
+fn best_triangle_listed<const PRUNE: bool>(
     o: &FrameSample,
     window: &[FrameSample],
     count: usize,
@@ -983,7 +983,7 @@ fn best_triangle_listed(
     if let Some(x) = xs.get_mut(j_at) {
         *x = Real::NAN;
     }
-    let best = third_point_of_kept(o, (j, dj), [&*xs, &*ys, &*zs], dist, fours, cfg);
+    let best = third_point_of_kept::<PRUNE>(o, (j, dj), [&*xs, &*ys, &*zs], dist, fours, cfg);
     let kk = window.get(usize::from(*listed.get(best.1)?))?;
     triangle_frame(o, j, (kk, best.0), cfg)
 }
@@ -1005,7 +1005,13 @@ fn earliest_largest(value: f32x4, at: f32x4) -> (Real, usize) {
 /// `dist` from `o`; a NaN `x` fails), four lanes at once: the same operations in the same
 /// order, lane by lane. Returns (doubled area, place) of the pick: the largest area, the
 /// earliest place among equal ones, as a scan in order picks (`-∞` if none).
-fn third_point_of_kept(
+///
+/// If `PRUNE`, four candidates whose bounds `|a|·|b|` on the doubled area lie below the
+/// best area so far are skipped. Where the lanes are vectors ([`LANES`]) that saves
+/// too few fours to pay for the bound, the largest area of each four and the branch,
+/// which the skips make hard to predict; where they run one by one (the firmware) it
+/// pays.
+fn third_point_of_kept<const PRUNE: bool>(
     o: &FrameSample,
     (j, dj): (&FrameSample, Real),
     xyz: [&[Real; LISTED_ON_STACK]; 3],
@@ -1024,9 +1030,9 @@ fn third_point_of_kept(
     // Every kept `db` lies within the side limits, and rounded products are monotone: if
     // both limits are prunable with `dj`, every kept candidate is (a dropped one, with
     // `db` zero, never wins anyway).
-    let all_prunable = prunable(dj, min_side) && prunable(dj, max_side);
+    let prune = PRUNE && prunable(dj, min_side) && prunable(dj, max_side);
     // Each lane keeps its own pick (the earliest of its largest areas) and place; `best`
-    // is the largest of the lanes' areas.
+    // is the largest of the lanes' areas (kept only to prune).
     let mut best_area = splat(Real::NEG_INFINITY);
     let mut best_at = splat(0.0);
     let mut best = Real::NEG_INFINITY;
@@ -1041,7 +1047,7 @@ fn third_point_of_kept(
         // cannot win (ties keep the earlier one), so four such are skipped before any
         // arithmetic. The slack covers the rounding of both sides (a few units in the
         // last place), which holds while the squares inside the norms are normal numbers.
-        if all_prunable
+        if prune
             && (dj4 * db * splat(AREA_BOUND_SLACK))
                 .simd_lt(splat(best))
                 .all()
@@ -1060,10 +1066,12 @@ fn third_point_of_kept(
             & area.simd_gt(best_area);
         best_area = larger.select(area, best_area);
         best_at = larger.select(here, best_at);
-        // No area is NaN: a plain comparison takes the larger.
-        let larger_of = |a: Real, b: Real| if a > b { a } else { b };
-        let [a0, a1, a2, a3] = best_area.to_array();
-        best = larger_of(larger_of(a0, a1), larger_of(a2, a3));
+        if PRUNE {
+            // No area is NaN: a plain comparison takes the larger.
+            let larger_of = |a: Real, b: Real| if a > b { a } else { b };
+            let [a0, a1, a2, a3] = best_area.to_array();
+            best = larger_of(larger_of(a0, a1), larger_of(a2, a3));
+        }
     }
     earliest_largest(best_area, best_at)
 }
@@ -1421,7 +1429,7 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// The bound [`best_triangle_listed`] prunes with holds for the rounded values:
+        /// The bound [`third_point_of_kept`] prunes with holds for the rounded values:
         /// `|a × b| <= |a|·|b|·AREA_BOUND_SLACK` whenever the sides are [`prunable`],
         /// for any magnitudes and for near-parallel vectors.
         #[test]
@@ -1612,9 +1620,18 @@ mod tests {
                         "origin {} ({})", i, how
                     );
                     proptest::prop_assert_eq!(
-                        build_frame_listing::<8>(&input, &cfg, &samples, packed, i, &mut scratch),
+                        build_frame_listing::<8, false>(
+                            &input, &cfg, &samples, packed, i, &mut scratch
+                        ),
                         plain,
                         "origin {} (capacity 8, {})", i, how
+                    );
+                    proptest::prop_assert_eq!(
+                        build_frame_listing::<LISTED_ON_STACK, true>(
+                            &input, &cfg, &samples, packed, i, &mut scratch
+                        ),
+                        plain,
+                        "origin {} (pruned, {})", i, how
                     );
                 }
                 let o = &samples[i];

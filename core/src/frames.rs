@@ -257,11 +257,14 @@ pub(crate) fn create_frames_with_twists(
     let mut scratch = TriangleScratch::new();
     let mut packed = [0; PACKED_ON_STACK];
     let packed = pack_keys(samples, input.size().0, &mut packed);
+    let mut rows = [0; INDEXED_ROWS + 1];
+    let rows = index_rows(samples, input.size().1, &mut rows);
     for (i, origin) in samples.iter().enumerate() {
         if !origin.tracked() {
             continue;
         }
-        let Some(frame) = build_frame(input, cfg, samples, packed, i, &mut scratch) else {
+        let index = SampleIndex { packed, rows };
+        let Some(frame) = build_frame(input, cfg, samples, index, i, &mut scratch) else {
             continue;
         };
         let Some(twist) = frame.twist(&space_origin) else {
@@ -631,17 +634,77 @@ fn pack_keys<'p>(
     Some(packed)
 }
 
-/// The frame with origin `samples[i]`, or `None` if no good triangle exists; `packed`
-/// holds the samples' [`packed_key`]s if [`pack_keys`] could write them.
+/// Image rows whose first samples [`create_frames`] keeps on its stack (2 bytes a row)
+/// for [`build_frame`] to find an origin's window by two reads instead of two binary
+/// searches; taller images are searched.
+const INDEXED_ROWS: usize = 1024;
+
+/// `first[y]`, for each row `y` of an image `height` rows tall and `y = height`: the
+/// place of the first of `samples` (sorted by row, as sampled) in row `y` or below, the
+/// same place as a binary search finds; written to the front of `first`. `None` if the
+/// image is taller than `first` has room for, a sample lies below it, or places do not
+/// fit `u16`.
+fn index_rows<'r>(
+    samples: &[FrameSample],
+    height: usize,
+    first: &'r mut [u16],
+) -> Option<&'r [u16]> {
+    let first = first.get_mut(..=height)?;
+    u16::try_from(samples.len()).ok()?;
+    let mut place = 0;
+    for (y, slot) in first.iter_mut().enumerate() {
+        while samples.get(place).is_some_and(|s| (s.px[1] as usize) < y) {
+            place += 1;
+        }
+        *slot = place as u16;
+    }
+    (place == samples.len()).then_some(first)
+}
+
+/// The places `first..last` of the samples in rows `ys`: from the rows' first samples
+/// `rows` ([`index_rows`]) if given, else by binary search. `None` only if `rows` is
+/// empty.
+fn rows_window(
+    samples: &[FrameSample],
+    rows: Option<&[u16]>,
+    ys: RangeInclusive<i64>,
+) -> Option<(usize, usize)> {
+    let (y_lo, y_hi) = (*ys.start(), *ys.end());
+    let Some(rows) = rows else {
+        return Some((
+            samples.partition_point(|s| i64::from(s.px[1]) < y_lo),
+            samples.partition_point(|s| i64::from(s.px[1]) <= y_hi),
+        ));
+    };
+    let first_at = |y: i64| {
+        rows.get(y.clamp(0, rows.len() as i64 - 1) as usize)
+            .copied()
+    };
+    Some((
+        usize::from(first_at(y_lo)?),
+        usize::from(first_at(y_hi.saturating_add(1))?),
+    ))
+}
+
+/// What [`create_frames`] keeps on its stack to speed up [`build_frame`]: the samples'
+/// [`packed_key`]s if [`pack_keys`] could write them, the first sample of each row if
+/// [`index_rows`] could.
+#[derive(Clone, Copy)]
+struct SampleIndex<'a> {
+    packed: Option<&'a [u32]>,
+    rows: Option<&'a [u16]>,
+}
+
+/// The frame with origin `samples[i]`, or `None` if no good triangle exists.
 fn build_frame(
     input: &MotionInput<'_>,
     cfg: &Config,
     samples: &[FrameSample],
-    packed: Option<&[u32]>,
+    index: SampleIndex<'_>,
     i: usize,
     scratch: &mut TriangleScratch,
 ) -> Option<BodyFrame> {
-    build_frame_listing::<LISTED_ON_STACK, { !LANES }>(input, cfg, samples, packed, i, scratch)
+    build_frame_listing::<LISTED_ON_STACK, { !LANES }>(input, cfg, samples, index, i, scratch)
 }
 
 /// Scratch of [`build_frame`] for the candidates of one origin, on the stack of
@@ -675,7 +738,7 @@ fn build_frame_listing<const CAP: usize, const PRUNE: bool>(
     input: &MotionInput<'_>,
     cfg: &Config,
     samples: &[FrameSample],
-    packed: Option<&[u32]>,
+    SampleIndex { packed, rows }: SampleIndex<'_>,
     i: usize,
     scratch: &mut TriangleScratch,
 ) -> Option<BodyFrame> {
@@ -692,8 +755,7 @@ fn build_frame_listing<const CAP: usize, const PRUNE: bool>(
         i64::MAX / 4
     };
     let (ox, oy) = (i64::from(o.px[0]), i64::from(o.px[1]));
-    let first = samples.partition_point(|s| i64::from(s.px[1]) < oy - reach_px);
-    let last = samples.partition_point(|s| i64::from(s.px[1]) <= oy + reach_px);
+    let (first, last) = rows_window(samples, rows, oy - reach_px..=oy + reach_px)?;
     let window = samples.get(first..last)?;
     // Columns within reach as one unsigned range test: `x - x_lo <= x_span`.
     let x_lo = (ox - reach_px).clamp(0, i64::from(u32::MAX)) as u32;
@@ -928,7 +990,16 @@ fn prunable(dj: Real, db: Real) -> bool {
 /// at a time, finds the second point and drops the candidates outside the side limits,
 /// the other looks for the third point among the rest, four at a time too. Each lane
 /// keeps the earliest of its best; the earliest of the lanes' equal best wins, as a scan
-/// in order picks. `PRUNE` as [`third_point_of_kept`].
+/// in order picks. `PRUNE` as [`third_point_of_kept`]. Inlined where there are
+/// [`LANES`] (fewer instructions there; more on the firmware).
+#[cfg_attr(
+    any(
+        target_feature = "sse2",
+        target_feature = "simd128",
+        target_feature = "neon"
+    ),
+    inline(always)
+)]
 fn best_triangle_listed<const PRUNE: bool>(
     o: &FrameSample,
     window: &[FrameSample],
@@ -1510,6 +1581,48 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        /// [`rows_window`] from the rows' first samples is the binary search's window,
+        /// for rows in and past the image, and windows that reach past either edge.
+        #[test]
+        fn rows_window_is_the_binary_search(
+            rows in proptest::collection::vec(0u32..30, 0..80),
+            height in 30usize..40,
+            y_lo in -50i64..50,
+            span in proptest::prop_oneof![0i64..40, proptest::strategy::Just(i64::MAX / 4)],
+        ) {
+            let mut rows = rows;
+            rows.sort_unstable();
+            let samples: std::vec::Vec<FrameSample> = rows
+                .iter()
+                .enumerate()
+                .map(|(x, &y)| FrameSample { px: [x as u32, y], ..FrameSample::EMPTY })
+                .collect();
+            let mut first = [0; 64];
+            let indexed = index_rows(&samples, height, &mut first);
+            proptest::prop_assert!(indexed.is_some());
+            let ys = y_lo..=y_lo + span;
+            proptest::prop_assert_eq!(
+                rows_window(&samples, indexed, ys.clone()),
+                rows_window(&samples, None, ys)
+            );
+        }
+    }
+
+    #[test]
+    fn rows_are_indexed_only_when_they_fit() {
+        let mut samples = [FrameSample::EMPTY; 3];
+        (samples[0].px, samples[1].px, samples[2].px) = ([5, 1], [2, 3], [9, 3]);
+        let mut first = [0; 6];
+        assert_eq!(
+            index_rows(&samples, 5, &mut first),
+            Some(&[0, 0, 1, 1, 3, 3][..])
+        );
+        // No room for 7 entries; a sample below a 3-row image.
+        assert_eq!(index_rows(&samples, 6, &mut first), None);
+        assert_eq!(index_rows(&samples, 3, &mut first), None);
+    }
+
     #[test]
     fn keys_are_packed_only_when_they_fit() {
         let mut samples = [FrameSample::EMPTY; 3];
@@ -1606,32 +1719,41 @@ mod tests {
             let cfg = Config::PAPER;
             // One scratch for every origin and both capacities, as in `create_frames`.
             let mut scratch = TriangleScratch::new();
-            // The scan over packed keys, and over the samples (as past `PACKED_ON_STACK`).
+            // The scan over packed keys, and over the samples (as past `PACKED_ON_STACK`);
+            // the window from the rows' first samples, and by binary search.
             let mut keys = [0; PACKED_ON_STACK];
             let packed = pack_keys(&samples, 1, &mut keys);
             proptest::prop_assert!(packed.is_some());
+            let mut first = [0; INDEXED_ROWS + 1];
+            let rows = index_rows(&samples, 120, &mut first);
+            proptest::prop_assert!(rows.is_some());
+            let indices = [
+                SampleIndex { packed, rows },
+                SampleIndex { packed, rows: None },
+                SampleIndex { packed: None, rows },
+            ];
             for i in 0..samples.len() {
                 let plain = build_frame_plain(&input, &cfg, &samples, i);
-                for packed in [packed, None] {
-                    let how = if packed.is_some() { "packed" } else { "by sample" };
+                for index in indices {
+                    let how = (index.packed.is_some(), index.rows.is_some());
                     proptest::prop_assert_eq!(
-                        build_frame(&input, &cfg, &samples, packed, i, &mut scratch),
+                        build_frame(&input, &cfg, &samples, index, i, &mut scratch),
                         plain,
-                        "origin {} ({})", i, how
+                        "origin {} (packed, rows: {:?})", i, how
                     );
                     proptest::prop_assert_eq!(
                         build_frame_listing::<8, false>(
-                            &input, &cfg, &samples, packed, i, &mut scratch
+                            &input, &cfg, &samples, index, i, &mut scratch
                         ),
                         plain,
-                        "origin {} (capacity 8, {})", i, how
+                        "origin {} (capacity 8; packed, rows: {:?})", i, how
                     );
                     proptest::prop_assert_eq!(
                         build_frame_listing::<LISTED_ON_STACK, true>(
-                            &input, &cfg, &samples, packed, i, &mut scratch
+                            &input, &cfg, &samples, index, i, &mut scratch
                         ),
                         plain,
-                        "origin {} (pruned, {})", i, how
+                        "origin {} (pruned; packed, rows: {:?})", i, how
                     );
                 }
                 let o = &samples[i];

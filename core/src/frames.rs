@@ -31,7 +31,7 @@ use crate::{
     Config, Error, ImageView, Intrinsics, Twist,
     error::{Buffer, check_len},
     image::{MAX_DEPTH_M, valid_depth},
-    math::{Real, floor_to_i64, sqrt4},
+    math::{Real, sqrt4},
     rng::Pcg32,
     se3::{spatial_twist, try_frame_from_points},
 };
@@ -255,11 +255,16 @@ pub(crate) fn create_frames_with_twists(
 
     let mut count = 0;
     let mut scratch = TriangleScratch::new();
+    let mut packed = [0; PACKED_ON_STACK];
+    let packed = pack_keys(samples, input.size().0, &mut packed);
+    let mut rows = [0; INDEXED_ROWS + 1];
+    let rows = index_rows(samples, input.size().1, &mut rows);
     for (i, origin) in samples.iter().enumerate() {
         if !origin.tracked() {
             continue;
         }
-        let Some(frame) = build_frame(input, cfg, samples, i, &mut scratch) else {
+        let index = SampleIndex { packed, rows };
+        let Some(frame) = build_frame(input, cfg, samples, index, i, &mut scratch) else {
             continue;
         };
         let Some(twist) = frame.twist(&space_origin) else {
@@ -495,7 +500,8 @@ fn local_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, cfg: &Config) -> Op
     if r == 0 {
         return Some(z_ref);
     }
-    let (xc, yc) = (floor_to_i64(u + 0.5), floor_to_i64(v + 0.5));
+    // `u` and `v` are finite and not negative here: truncation rounds down.
+    let (xc, yc) = ((u + 0.5) as i64, (v + 0.5) as i64);
     let tol = cfg.depth_window_tol_m;
     // The window clipped to the image.
     let (width, height) = depth.size();
@@ -566,18 +572,25 @@ fn bilinear_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, edge_m: Real) ->
     if !(u.is_finite() && v.is_finite()) || u < 0.0 || v < 0.0 {
         return None;
     }
-    let (x0, y0) = (floor_to_i64(u), floor_to_i64(v));
-    // Exact below 2^63; from there on no pixel is found anyway.
+    // Not negative: truncation rounds down (and saturates far outside any image).
+    let (x0, y0) = (u as usize, v as usize);
+    // Exact below 2^64; from there on no pixel is found anyway.
     let (fx, fy) = (u - x0 as Real, v - y0 as Real);
     // At the last row/column the far neighbour has zero weight; reuse the near one.
     let x1 = if fx > 0.0 { x0.saturating_add(1) } else { x0 };
     let y1 = if fy > 0.0 { y0.saturating_add(1) } else { y0 };
-    let z00 = valid_depth(depth.at(x0, y0)?)?;
-    let z10 = valid_depth(depth.at(x1, y0)?)?;
-    let z01 = valid_depth(depth.at(x0, y1)?)?;
-    let z11 = valid_depth(depth.at(x1, y1)?)?;
-    let lo = z00.min(z10).min(z01).min(z11);
-    let hi = z00.max(z10).max(z01).max(z11);
+    let (row0, row1) = (depth.row(y0)?, depth.row(y1)?);
+    let z00 = valid_depth(*row0.get(x0)?)?;
+    let z10 = valid_depth(*row0.get(x1)?)?;
+    let z01 = valid_depth(*row1.get(x0)?)?;
+    let z11 = valid_depth(*row1.get(x1)?)?;
+    // Readings are never NaN: plain comparisons pick as `min` and `max` do.
+    let (min, max) = (
+        |a: Real, b: Real| if b < a { b } else { a },
+        |a: Real, b: Real| if b > a { b } else { a },
+    );
+    let lo = min(min(min(z00, z10), z01), z11);
+    let hi = max(max(max(z00, z10), z01), z11);
     if hi - lo > edge_m {
         return None;
     }
@@ -586,15 +599,112 @@ fn bilinear_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, edge_m: Real) ->
     Some(top + (bottom - top) * fy)
 }
 
+/// Samples whose [`packed_key`]s [`create_frames`] keeps on its stack (4 bytes each) for
+/// [`build_frame`]'s scan, which then reads four keys a vector instead of one sample's
+/// [`column_key`] at a time; past this many samples it reads the samples.
+const PACKED_ON_STACK: usize = 1024;
+
+/// Columns a [`packed_key`] holds: images wider than this are scanned by sample.
+const PACKED_COLUMNS: usize = 1 << 15;
+
+/// A sample's column `x` (below [`PACKED_COLUMNS`]) in the low half and its label in the
+/// high half; label zero (no origin has it) if the flow lost the point. For `x_lo` and
+/// `span` below 2¹⁵, `packed_key(x, l) - packed_key(x_lo, k) <= span` (wrapping) holds
+/// exactly when `l == k` and `x - x_lo <= span` (wrapping) do: a different label moves
+/// the difference by a multiple of 2¹⁶ that leaves it between 2¹⁵ and 2³², unwrapped.
+const fn packed_key(x: u32, label: u16) -> u32 {
+    x | (label as u32) << 16
+}
+
+/// The [`packed_key`]s of `samples`, written to the front of `packed`; `None` if they do
+/// not fit it or the image is wider than [`PACKED_COLUMNS`].
+fn pack_keys<'p>(
+    samples: &[FrameSample],
+    width: usize,
+    packed: &'p mut [u32],
+) -> Option<&'p [u32]> {
+    if width > PACKED_COLUMNS {
+        return None;
+    }
+    let packed = packed.get_mut(..samples.len())?;
+    for (key, s) in packed.iter_mut().zip(samples) {
+        let label = if s.tracked() { s.label() } else { 0 };
+        *key = packed_key(s.px[0], label);
+    }
+    Some(packed)
+}
+
+/// Image rows whose first samples [`create_frames`] keeps on its stack (2 bytes a row)
+/// for [`build_frame`] to find an origin's window by two reads instead of two binary
+/// searches; taller images are searched.
+const INDEXED_ROWS: usize = 1024;
+
+/// `first[y]`, for each row `y` of an image `height` rows tall and `y = height`: the
+/// place of the first of `samples` (sorted by row, as sampled) in row `y` or below, the
+/// same place as a binary search finds; written to the front of `first`. `None` if the
+/// image is taller than `first` has room for, a sample lies below it, or places do not
+/// fit `u16`.
+fn index_rows<'r>(
+    samples: &[FrameSample],
+    height: usize,
+    first: &'r mut [u16],
+) -> Option<&'r [u16]> {
+    let first = first.get_mut(..=height)?;
+    u16::try_from(samples.len()).ok()?;
+    let mut place = 0;
+    for (y, slot) in first.iter_mut().enumerate() {
+        while samples.get(place).is_some_and(|s| (s.px[1] as usize) < y) {
+            place += 1;
+        }
+        *slot = place as u16;
+    }
+    (place == samples.len()).then_some(first)
+}
+
+/// The places `first..last` of the samples in rows `ys`: from the rows' first samples
+/// `rows` ([`index_rows`]) if given, else by binary search. `None` only if `rows` is
+/// empty.
+fn rows_window(
+    samples: &[FrameSample],
+    rows: Option<&[u16]>,
+    ys: RangeInclusive<i64>,
+) -> Option<(usize, usize)> {
+    let (y_lo, y_hi) = (*ys.start(), *ys.end());
+    let Some(rows) = rows else {
+        return Some((
+            samples.partition_point(|s| i64::from(s.px[1]) < y_lo),
+            samples.partition_point(|s| i64::from(s.px[1]) <= y_hi),
+        ));
+    };
+    let first_at = |y: i64| {
+        rows.get(y.clamp(0, rows.len() as i64 - 1) as usize)
+            .copied()
+    };
+    Some((
+        usize::from(first_at(y_lo)?),
+        usize::from(first_at(y_hi.saturating_add(1))?),
+    ))
+}
+
+/// What [`create_frames`] keeps on its stack to speed up [`build_frame`]: the samples'
+/// [`packed_key`]s if [`pack_keys`] could write them, the first sample of each row if
+/// [`index_rows`] could.
+#[derive(Clone, Copy)]
+struct SampleIndex<'a> {
+    packed: Option<&'a [u32]>,
+    rows: Option<&'a [u16]>,
+}
+
 /// The frame with origin `samples[i]`, or `None` if no good triangle exists.
 fn build_frame(
     input: &MotionInput<'_>,
     cfg: &Config,
     samples: &[FrameSample],
+    index: SampleIndex<'_>,
     i: usize,
     scratch: &mut TriangleScratch,
 ) -> Option<BodyFrame> {
-    build_frame_listing::<LISTED_ON_STACK>(input, cfg, samples, i, scratch)
+    build_frame_listing::<LISTED_ON_STACK, { !LANES }>(input, cfg, samples, index, i, scratch)
 }
 
 /// Scratch of [`build_frame`] for the candidates of one origin, on the stack of
@@ -621,12 +731,14 @@ impl TriangleScratch {
 }
 
 /// [`build_frame`], listing fewer than `CAP` candidates (a power of two, at most
-/// [`LISTED_ON_STACK`]) before it falls back to [`best_triangle`]; tests use a small
-/// `CAP` to reach the fallback.
-fn build_frame_listing<const CAP: usize>(
+/// [`LISTED_ON_STACK`]) before it falls back to [`best_triangle`], and pruning the third
+/// point's candidates if `PRUNE` ([`third_point_of_kept`]); tests use a small `CAP` to
+/// reach the fallback, and both ways of the third point's pass.
+fn build_frame_listing<const CAP: usize, const PRUNE: bool>(
     input: &MotionInput<'_>,
     cfg: &Config,
     samples: &[FrameSample],
+    SampleIndex { packed, rows }: SampleIndex<'_>,
     i: usize,
     scratch: &mut TriangleScratch,
 ) -> Option<BodyFrame> {
@@ -643,8 +755,7 @@ fn build_frame_listing<const CAP: usize>(
         i64::MAX / 4
     };
     let (ox, oy) = (i64::from(o.px[0]), i64::from(o.px[1]));
-    let first = samples.partition_point(|s| i64::from(s.px[1]) < oy - reach_px);
-    let last = samples.partition_point(|s| i64::from(s.px[1]) <= oy + reach_px);
+    let (first, last) = rows_window(samples, rows, oy - reach_px..=oy + reach_px)?;
     let window = samples.get(first..last)?;
     // Columns within reach as one unsigned range test: `x - x_lo <= x_span`.
     let x_lo = (ox - reach_px).clamp(0, i64::from(u32::MAX)) as u32;
@@ -655,30 +766,49 @@ fn build_frame_listing<const CAP: usize>(
     let candidate = |s: &FrameSample| (s.px[0].wrapping_sub(x_lo) <= x_span) & (s.key() == key);
     // The window's candidates, listed without a branch per sample (the column test is a
     // coin flip for the branch predictor), in two runs around the origin's place (no
-    // other sample has its pixel). A write at `CAP` wraps and overwrites the first entry
-    // (the mask only spares a bounds check); such a list is not used. Window places fit
-    // `u16` (checked first).
+    // other sample has its pixel): from the packed keys where there are some, else from
+    // the samples. A write at `CAP` wraps and overwrites the first entry (the mask only
+    // spares a bounds check); such a list is not used. Window places fit `u16` (checked
+    // first).
     if window.len() <= 1 << 16 {
         let own = i.wrapping_sub(first).min(window.len());
-        let (before, from_own) = window.split_at(own);
-        let after = from_own.get(1..).unwrap_or(&[]);
-        let runs = [(0, before), (own + 1, after)];
-        let count = if x_lo < COLUMN_KEY_EXACT_BELOW && x_span < COLUMN_KEY_EXACT_BELOW {
+        let count = if let Some(keys) = packed.and_then(|p| p.get(first..last)) {
+            // Below `PACKED_COLUMNS` every column and `x_lo` are; so is the span clipped.
+            let base = packed_key(x_lo, o.label());
+            let span = x_span.min(PACKED_COLUMNS as u32 - 1);
+            let one = |k: &u32| k.wrapping_sub(base) <= span;
+            if KEY_LANES {
+                let (base, span) = (u32x4::splat(base), u32x4::splat(span));
+                list::<CAP, _>(around(keys, own), window, scratch, one, |f| {
+                    packed_bits(f, base, span)
+                })
+            } else {
+                list::<CAP, _>(around(keys, own), window, scratch, one, |f| {
+                    four_bits(f, one)
+                })
+            }
+        } else if x_lo < COLUMN_KEY_EXACT_BELOW && x_span < COLUMN_KEY_EXACT_BELOW {
             let (base, span) = (column_key(x_lo, key), u64::from(x_span));
             let one = |s: &FrameSample| s.column_key.wrapping_sub(base) <= span;
             if KEY_LANES {
                 let low = u32x4::new([x_lo, key, x_lo, key]);
                 let limit = u32x4::new([x_span, 0, x_span, 0]);
-                list::<CAP>(runs, scratch, one, |f| keyed_bits(f, low, limit))
+                list::<CAP, _>(around(window, own), window, scratch, one, |f| {
+                    keyed_bits(f, low, limit)
+                })
             } else {
-                list::<CAP>(runs, scratch, one, |f| four_bits(f, one))
+                list::<CAP, _>(around(window, own), window, scratch, one, |f| {
+                    four_bits(f, one)
+                })
             }
         } else {
-            list::<CAP>(runs, scratch, candidate, |f| four_bits(f, candidate))
+            list::<CAP, _>(around(window, own), window, scratch, candidate, |f| {
+                four_bits(f, candidate)
+            })
         };
         // At `CAP` the next write already wrapped.
         if count < CAP {
-            return best_triangle_listed(o, window, count, scratch, cfg);
+            return best_triangle_listed::<PRUNE>(o, window, count, scratch, cfg);
         }
     }
     best_triangle(
@@ -688,28 +818,38 @@ fn build_frame_listing<const CAP: usize>(
     )
 }
 
-/// Writes the places of the samples of `runs` (each with its first place) that pass
-/// `candidate` to `scratch.listed`, and their points at `t` to `scratch.kept`, in order;
-/// returns how many passed. The test runs without a branch per sample: the results of a
-/// word of [`WORD_BITS`] samples are packed first, then only its set bits are visited. A
-/// write at `CAP` wraps (see [`build_frame_listing`]).
+/// `all` in two runs with their first places, before and after place `own`, which is
+/// left out.
+fn around<T>(all: &[T], own: usize) -> [(usize, &[T]); 2] {
+    let (before, from_own) = all.split_at(own.min(all.len()));
+    let after = from_own.get(1..).unwrap_or(&[]);
+    [(0, before), (own + 1, after)]
+}
+
+/// Writes the places of the entries of `runs` (each with its first place in `window`:
+/// the samples or their keys) that pass `candidate` to `scratch.listed`, and the points
+/// at `t` of those samples to `scratch.kept`, in order; returns how many passed. The test
+/// runs without a branch per entry: the results of a word of [`WORD_BITS`] entries are
+/// packed first, then only its set bits are visited. A write at `CAP` wraps (see
+/// [`build_frame_listing`]).
 #[inline]
-fn list<const CAP: usize>(
-    runs: [(usize, &[FrameSample]); 2],
+fn list<const CAP: usize, T>(
+    runs: [(usize, &[T]); 2],
+    window: &[FrameSample],
     scratch: &mut TriangleScratch,
-    candidate: impl Fn(&FrameSample) -> bool,
-    four: impl Fn(&[FrameSample; 4]) -> usize,
+    candidate: impl Fn(&T) -> bool,
+    four: impl Fn(&[T; 4]) -> usize,
 ) -> usize {
     let mut count = 0;
     for (start, run) in runs {
         let (words, rest) = run.as_chunks::<WORD_BITS>();
         for (first, word) in (start..).step_by(WORD_BITS).zip(words) {
             let bits = candidate_bits(word, &candidate, &four);
-            count = emit::<CAP>(scratch, count, first, bits, |b| word.get(b % WORD_BITS));
+            count = emit::<CAP>(scratch, count, first, bits, window);
         }
         let first = start + words.len() * WORD_BITS;
         let bits = candidate_bits(rest, &candidate, &four);
-        count = emit::<CAP>(scratch, count, first, bits, |b| rest.get(b));
+        count = emit::<CAP>(scratch, count, first, bits, window);
     }
     count
 }
@@ -720,10 +860,10 @@ const WORD_BITS: usize = usize::BITS as usize;
 /// Bit `b` set when `chunk[b]` (at most [`WORD_BITS`] samples) passes `candidate`;
 /// `four` gives the bits of four samples at once (the first in bit 0).
 #[inline]
-fn candidate_bits(
-    chunk: &[FrameSample],
-    candidate: impl Fn(&FrameSample) -> bool,
-    four: impl Fn(&[FrameSample; 4]) -> usize,
+fn candidate_bits<T>(
+    chunk: &[T],
+    candidate: impl Fn(&T) -> bool,
+    four: impl Fn(&[T; 4]) -> usize,
 ) -> usize {
     // Each sample enters at the top and moves down as the later ones enter.
     let (fours, rest) = chunk.as_chunks::<4>();
@@ -738,22 +878,21 @@ fn candidate_bits(
 
 /// The bits of four samples (the first in bit 0), each tested by `candidate`.
 #[inline]
-fn four_bits([a, b, c, d]: &[FrameSample; 4], candidate: impl Fn(&FrameSample) -> bool) -> usize {
+fn four_bits<T>([a, b, c, d]: &[T; 4], candidate: impl Fn(&T) -> bool) -> usize {
     let bit = |s| usize::from(candidate(s));
     bit(a) | bit(b) << 1 | bit(c) << 2 | bit(d) << 3
 }
 
-/// Whether [`build_frame`] tests the column keys of samples on vector lanes, two at a
-/// time: only where `wide` has lanes (elsewhere it would run them one by one) and the
-/// low half of a `u64` comes first.
-const KEY_LANES: bool = cfg!(all(
-    target_endian = "little",
-    any(
-        target_feature = "sse2",
-        target_feature = "simd128",
-        target_feature = "neon"
-    )
+/// Whether `wide` has vector lanes on this target (elsewhere it runs them one by one).
+const LANES: bool = cfg!(any(
+    target_feature = "sse2",
+    target_feature = "simd128",
+    target_feature = "neon"
 ));
+
+/// Whether [`build_frame`] tests the column keys of samples on vector lanes, two at a
+/// time: only where there are [`LANES`] and the low half of a `u64` comes first.
+const KEY_LANES: bool = LANES && cfg!(target_endian = "little");
 
 /// [`four_bits`] for the [`column_key`] test, on lanes: a sample's key as its two 32-bit
 /// halves (column, key) less `low` (`x_lo`, the key) must be at most `limit` (the
@@ -769,6 +908,14 @@ fn keyed_bits([a, b, c, d]: &[FrameSample; 4], low: u32x4, limit: u32x4) -> usiz
     pair(a, b) | pair(c, d) << 2
 }
 
+/// [`four_bits`] for the [`packed_key`] test, on lanes: a key less `base` must be at
+/// most `span`, wrapping.
+#[inline]
+fn packed_bits(keys: &[u32; 4], base: u32x4, span: u32x4) -> usize {
+    let outside = (u32x4::new(*keys) - base).simd_gt(span);
+    !outside.to_bitmask() as usize & 0b1111
+}
+
 /// For the lanes of two samples that failed [`keyed_bits`]' test (bits 0 and 1 the first
 /// sample's, 2 and 3 the second's), which samples pass (bit 0 the first).
 const PAIR_INSIDE: [u8; 16] = {
@@ -781,15 +928,15 @@ const PAIR_INSIDE: [u8; 16] = {
     table
 };
 
-/// Lists sample `at(b)` (place `first + b`) for each set bit `b` of `bits`, from the
-/// lowest, at `count` onwards ([`list`]); returns the new count.
+/// Lists sample `window[first + b]` for each set bit `b` of `bits`, from the lowest, at
+/// `count` onwards ([`list`]); returns the new count.
 #[inline]
-fn emit<'s, const CAP: usize>(
+fn emit<const CAP: usize>(
     scratch: &mut TriangleScratch,
     mut count: usize,
     first: usize,
     mut bits: usize,
-    at: impl Fn(usize) -> Option<&'s FrameSample>,
+    window: &[FrameSample],
 ) -> usize {
     let TriangleScratch {
         listed,
@@ -799,7 +946,9 @@ fn emit<'s, const CAP: usize>(
     while bits != 0 {
         let b = bits.trailing_zeros() as usize;
         bits &= bits - 1;
-        let Some(s) = at(b) else { break };
+        let Some(s) = window.get(first + b) else {
+            break;
+        };
         let slot = count & (CAP - 1);
         listed[slot] = (first + b) as u16;
         xs[slot] = s.p_t.x;
@@ -817,13 +966,13 @@ const LISTED_ON_STACK: usize = 512;
 const _: () = assert!(LISTED_ON_STACK.is_power_of_two());
 
 /// Relative slack on the bound `|a|·|b|` of a triangle's doubled area `|a × b|` in
-/// [`best_triangle_listed`]: far above the few units in the last place by which the
+/// [`third_point_of_kept`]: far above the few units in the last place by which the
 /// rounded cross product's norm can exceed the rounded product of the norms.
 const AREA_BOUND_SLACK: Real = 1.001;
-/// Smallest side and bound [`best_triangle_listed`] prunes with: below it, rounding
+/// Smallest side and bound [`third_point_of_kept`] prunes with: below it, rounding
 /// near the subnormals is no longer relative, and every candidate is computed.
 const AREA_BOUND_MIN: Real = 1e-15;
-/// Largest bound [`best_triangle_listed`] prunes with: above it, the squares inside the
+/// Largest bound [`third_point_of_kept`] prunes with: above it, the squares inside the
 /// norms could overflow.
 const AREA_BOUND_MAX: Real = 1e18;
 
@@ -841,8 +990,17 @@ fn prunable(dj: Real, db: Real) -> bool {
 /// at a time, finds the second point and drops the candidates outside the side limits,
 /// the other looks for the third point among the rest, four at a time too. Each lane
 /// keeps the earliest of its best; the earliest of the lanes' equal best wins, as a scan
-/// in order picks.
-fn best_triangle_listed(
+/// in order picks. `PRUNE` as [`third_point_of_kept`]. Inlined where there are
+/// [`LANES`] (fewer instructions there; more on the firmware).
+#[cfg_attr(
+    any(
+        target_feature = "sse2",
+        target_feature = "simd128",
+        target_feature = "neon"
+    ),
+    inline(always)
+)]
+fn best_triangle_listed<const PRUNE: bool>(
     o: &FrameSample,
     window: &[FrameSample],
     count: usize,
@@ -896,7 +1054,7 @@ fn best_triangle_listed(
     if let Some(x) = xs.get_mut(j_at) {
         *x = Real::NAN;
     }
-    let best = third_point_of_kept(o, (j, dj), [&*xs, &*ys, &*zs], dist, fours, cfg);
+    let best = third_point_of_kept::<PRUNE>(o, (j, dj), [&*xs, &*ys, &*zs], dist, fours, cfg);
     let kk = window.get(usize::from(*listed.get(best.1)?))?;
     triangle_frame(o, j, (kk, best.0), cfg)
 }
@@ -918,7 +1076,13 @@ fn earliest_largest(value: f32x4, at: f32x4) -> (Real, usize) {
 /// `dist` from `o`; a NaN `x` fails), four lanes at once: the same operations in the same
 /// order, lane by lane. Returns (doubled area, place) of the pick: the largest area, the
 /// earliest place among equal ones, as a scan in order picks (`-∞` if none).
-fn third_point_of_kept(
+///
+/// If `PRUNE`, four candidates whose bounds `|a|·|b|` on the doubled area lie below the
+/// best area so far are skipped. Where the lanes are vectors ([`LANES`]) that saves
+/// too few fours to pay for the bound, the largest area of each four and the branch,
+/// which the skips make hard to predict; where they run one by one (the firmware) it
+/// pays.
+fn third_point_of_kept<const PRUNE: bool>(
     o: &FrameSample,
     (j, dj): (&FrameSample, Real),
     xyz: [&[Real; LISTED_ON_STACK]; 3],
@@ -937,9 +1101,9 @@ fn third_point_of_kept(
     // Every kept `db` lies within the side limits, and rounded products are monotone: if
     // both limits are prunable with `dj`, every kept candidate is (a dropped one, with
     // `db` zero, never wins anyway).
-    let all_prunable = prunable(dj, min_side) && prunable(dj, max_side);
+    let prune = PRUNE && prunable(dj, min_side) && prunable(dj, max_side);
     // Each lane keeps its own pick (the earliest of its largest areas) and place; `best`
-    // is the largest of the lanes' areas.
+    // is the largest of the lanes' areas (kept only to prune).
     let mut best_area = splat(Real::NEG_INFINITY);
     let mut best_at = splat(0.0);
     let mut best = Real::NEG_INFINITY;
@@ -954,7 +1118,7 @@ fn third_point_of_kept(
         // cannot win (ties keep the earlier one), so four such are skipped before any
         // arithmetic. The slack covers the rounding of both sides (a few units in the
         // last place), which holds while the squares inside the norms are normal numbers.
-        if all_prunable
+        if prune
             && (dj4 * db * splat(AREA_BOUND_SLACK))
                 .simd_lt(splat(best))
                 .all()
@@ -973,10 +1137,12 @@ fn third_point_of_kept(
             & area.simd_gt(best_area);
         best_area = larger.select(area, best_area);
         best_at = larger.select(here, best_at);
-        // No area is NaN: a plain comparison takes the larger.
-        let larger_of = |a: Real, b: Real| if a > b { a } else { b };
-        let [a0, a1, a2, a3] = best_area.to_array();
-        best = larger_of(larger_of(a0, a1), larger_of(a2, a3));
+        if PRUNE {
+            // No area is NaN: a plain comparison takes the larger.
+            let larger_of = |a: Real, b: Real| if a > b { a } else { b };
+            let [a0, a1, a2, a3] = best_area.to_array();
+            best = larger_of(larger_of(a0, a1), larger_of(a2, a3));
+        }
     }
     earliest_largest(best_area, best_at)
 }
@@ -1334,7 +1500,7 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// The bound [`best_triangle_listed`] prunes with holds for the rounded values:
+        /// The bound [`third_point_of_kept`] prunes with holds for the rounded values:
         /// `|a × b| <= |a|·|b|·AREA_BOUND_SLACK` whenever the sides are [`prunable`],
         /// for any magnitudes and for near-parallel vectors.
         #[test]
@@ -1378,6 +1544,97 @@ mod tests {
             let two = x.wrapping_sub(x_lo) <= x_span && other == key;
             proptest::prop_assert_eq!(one, two);
         }
+    }
+
+    proptest::proptest! {
+        /// [`packed_key`]'s single compare is the column test and the label test, and
+        /// [`packed_bits`] (four keys a vector) passes the keys it passes, near the edges
+        /// of the range below [`PACKED_COLUMNS`], for columns below `x_lo` and for labels
+        /// that differ a little or a lot.
+        #[test]
+        fn packed_key_compare_is_the_column_and_label_tests(
+            x_lo in proptest::prop_oneof![0u32..100, (1u32 << 15) - 100..1 << 15],
+            x_span in proptest::prop_oneof![0u32..100, (1u32 << 15) - 100..1 << 15],
+            dx in proptest::array::uniform4(-200i64..200),
+            far in proptest::array::uniform4(proptest::option::weighted(0.2, 0u32..1 << 15)),
+            labels in proptest::array::uniform4(
+                proptest::prop_oneof![0u16..3, u16::MAX - 2..=u16::MAX]
+            ),
+            label in proptest::prop_oneof![1u16..3, u16::MAX - 2..=u16::MAX],
+        ) {
+            let columns: [u32; 4] = core::array::from_fn(|i| {
+                far[i].unwrap_or_else(|| {
+                    (i64::from(x_lo) + dx[i]).clamp(0, (1 << 15) - 1) as u32
+                })
+            });
+            let keys: [u32; 4] = core::array::from_fn(|i| packed_key(columns[i], labels[i]));
+            let base = packed_key(x_lo, label);
+            let one = |k: &u32| k.wrapping_sub(base) <= x_span;
+            for i in 0..4 {
+                let two = columns[i].wrapping_sub(x_lo) <= x_span && labels[i] == label;
+                proptest::prop_assert_eq!(one(&keys[i]), two, "key {}", i);
+            }
+            proptest::prop_assert_eq!(
+                packed_bits(&keys, u32x4::splat(base), u32x4::splat(x_span)),
+                four_bits(&keys, one)
+            );
+        }
+    }
+
+    proptest::proptest! {
+        /// [`rows_window`] from the rows' first samples is the binary search's window,
+        /// for rows in and past the image, and windows that reach past either edge.
+        #[test]
+        fn rows_window_is_the_binary_search(
+            rows in proptest::collection::vec(0u32..30, 0..80),
+            height in 30usize..40,
+            y_lo in -50i64..50,
+            span in proptest::prop_oneof![0i64..40, proptest::strategy::Just(i64::MAX / 4)],
+        ) {
+            let mut rows = rows;
+            rows.sort_unstable();
+            let samples: std::vec::Vec<FrameSample> = rows
+                .iter()
+                .enumerate()
+                .map(|(x, &y)| FrameSample { px: [x as u32, y], ..FrameSample::EMPTY })
+                .collect();
+            let mut first = [0; 64];
+            let indexed = index_rows(&samples, height, &mut first);
+            proptest::prop_assert!(indexed.is_some());
+            let ys = y_lo..=y_lo + span;
+            proptest::prop_assert_eq!(
+                rows_window(&samples, indexed, ys.clone()),
+                rows_window(&samples, None, ys)
+            );
+        }
+    }
+
+    #[test]
+    fn rows_are_indexed_only_when_they_fit() {
+        let mut samples = [FrameSample::EMPTY; 3];
+        (samples[0].px, samples[1].px, samples[2].px) = ([5, 1], [2, 3], [9, 3]);
+        let mut first = [0; 6];
+        assert_eq!(
+            index_rows(&samples, 5, &mut first),
+            Some(&[0, 0, 1, 1, 3, 3][..])
+        );
+        // No room for 7 entries; a sample below a 3-row image.
+        assert_eq!(index_rows(&samples, 6, &mut first), None);
+        assert_eq!(index_rows(&samples, 3, &mut first), None);
+    }
+
+    #[test]
+    fn keys_are_packed_only_when_they_fit() {
+        let mut samples = [FrameSample::EMPTY; 3];
+        samples[1].px = [(1 << 15) - 1, 4];
+        samples[1].column_key = column_key((1 << 15) - 1, 7);
+        let mut keys = [0; 3];
+        assert_eq!(
+            pack_keys(&samples, 1 << 15, &mut keys),
+            Some(&[0, packed_key((1 << 15) - 1, 7), 0][..])
+        );
+        assert_eq!(pack_keys(&samples, (1 << 15) + 1, &mut keys), None);
+        assert_eq!(pack_keys(&samples, 8, &mut keys[..2]), None);
     }
 
     proptest::proptest! {
@@ -1462,16 +1719,43 @@ mod tests {
             let cfg = Config::PAPER;
             // One scratch for every origin and both capacities, as in `create_frames`.
             let mut scratch = TriangleScratch::new();
+            // The scan over packed keys, and over the samples (as past `PACKED_ON_STACK`);
+            // the window from the rows' first samples, and by binary search.
+            let mut keys = [0; PACKED_ON_STACK];
+            let packed = pack_keys(&samples, 1, &mut keys);
+            proptest::prop_assert!(packed.is_some());
+            let mut first = [0; INDEXED_ROWS + 1];
+            let rows = index_rows(&samples, 120, &mut first);
+            proptest::prop_assert!(rows.is_some());
+            let indices = [
+                SampleIndex { packed, rows },
+                SampleIndex { packed, rows: None },
+                SampleIndex { packed: None, rows },
+            ];
             for i in 0..samples.len() {
                 let plain = build_frame_plain(&input, &cfg, &samples, i);
-                proptest::prop_assert_eq!(
-                    build_frame(&input, &cfg, &samples, i, &mut scratch), plain, "origin {}", i
-                );
-                proptest::prop_assert_eq!(
-                    build_frame_listing::<8>(&input, &cfg, &samples, i, &mut scratch),
-                    plain,
-                    "origin {} (capacity 8)", i
-                );
+                for index in indices {
+                    let how = (index.packed.is_some(), index.rows.is_some());
+                    proptest::prop_assert_eq!(
+                        build_frame(&input, &cfg, &samples, index, i, &mut scratch),
+                        plain,
+                        "origin {} (packed, rows: {:?})", i, how
+                    );
+                    proptest::prop_assert_eq!(
+                        build_frame_listing::<8, false>(
+                            &input, &cfg, &samples, index, i, &mut scratch
+                        ),
+                        plain,
+                        "origin {} (capacity 8; packed, rows: {:?})", i, how
+                    );
+                    proptest::prop_assert_eq!(
+                        build_frame_listing::<LISTED_ON_STACK, true>(
+                            &input, &cfg, &samples, index, i, &mut scratch
+                        ),
+                        plain,
+                        "origin {} (pruned; packed, rows: {:?})", i, how
+                    );
+                }
                 let o = &samples[i];
                 let same = |s: &&FrameSample| {
                     s.tracked() && s.label() == o.label() && s.px != o.px
@@ -1485,6 +1769,86 @@ mod tests {
         }
     }
 
+    /// `x` rounded down, as the plain references index pixels (saturating; NaN gives 0).
+    fn floor(x: Real) -> i64 {
+        libm::floorf(x) as i64
+    }
+
+    /// [`bilinear_depth`] as it was before it read rows: `floor`, `at`, `min` and `max`.
+    fn bilinear_depth_plain(
+        depth: &ImageView<'_, f32>,
+        u: Real,
+        v: Real,
+        edge_m: Real,
+    ) -> Option<Real> {
+        if !(u.is_finite() && v.is_finite()) || u < 0.0 || v < 0.0 {
+            return None;
+        }
+        let (x0, y0) = (floor(u), floor(v));
+        let (fx, fy) = (u - x0 as Real, v - y0 as Real);
+        let x1 = if fx > 0.0 { x0.saturating_add(1) } else { x0 };
+        let y1 = if fy > 0.0 { y0.saturating_add(1) } else { y0 };
+        let z00 = valid_depth(depth.at(x0, y0)?)?;
+        let z10 = valid_depth(depth.at(x1, y0)?)?;
+        let z01 = valid_depth(depth.at(x0, y1)?)?;
+        let z11 = valid_depth(depth.at(x1, y1)?)?;
+        let lo = z00.min(z10).min(z01).min(z11);
+        let hi = z00.max(z10).max(z01).max(z11);
+        if hi - lo > edge_m {
+            return None;
+        }
+        let top = z00 + (z10 - z00) * fx;
+        let bottom = z01 + (z11 - z01) * fx;
+        Some(top + (bottom - top) * fy)
+    }
+
+    proptest::proptest! {
+        // Cheap cases, and a neighbour alone past the edge limit is a rare draw.
+        #![proptest_config(proptest::test_runner::Config::with_cases(4096))]
+        /// [`bilinear_depth`] gives the plain one's depth bit for bit at any position
+        /// (any bits, or near and past the image's edges) and edge limit, with holes and
+        /// absurd readings among the neighbours.
+        #[test]
+        fn bilinear_depth_is_the_plain_one(
+            width in 1usize..6,
+            cells in proptest::collection::vec((0u8..12, -3i8..=3), 1..36),
+            at in proptest::array::uniform2(proptest::prop_oneof![
+                3 => -0.2f32..1.2,
+                1 => proptest::num::f32::ANY,
+                1 => proptest::sample::select(vec![0.0f32, -0.0, 0.2, 0.5, 1.0]),
+            ]),
+            edge_steps in proptest::prop_oneof![0u8..4, proptest::strategy::Just(255)],
+        ) {
+            let height = cells.len() / width;
+            proptest::prop_assume!(height > 0);
+            // Readings a few millimetre steps apart, so that the edge limit decides often.
+            let depth: std::vec::Vec<f32> = cells[..width * height]
+                .iter()
+                .map(|&(kind, step)| match kind {
+                    0 => 0.0,
+                    1 => f32::NAN,
+                    2 => 1e3,
+                    _ => 0.6 + f32::from(step) * 0.001,
+                })
+                .collect();
+            let depth = ImageView::packed(width, height, &depth).unwrap();
+            // Positions mostly in or just past the image, in pixels.
+            let scale = |t: f32, size: usize| {
+                if (-0.2..=1.2).contains(&t) { t * size as f32 } else { t }
+            };
+            let (u, v) = (scale(at[0], width), scale(at[1], height));
+            let edge_m = if edge_steps == 255 {
+                f32::INFINITY
+            } else {
+                f32::from(edge_steps) * 0.001
+            };
+            proptest::prop_assert_eq!(
+                bilinear_depth(&depth, u, v, edge_m).map(f32::to_bits),
+                bilinear_depth_plain(&depth, u, v, edge_m).map(f32::to_bits)
+            );
+        }
+    }
+
     /// [`local_depth`] as it was before the sums became lanes: one sum per variable, every
     /// depth tested with [`valid_depth`].
     fn local_depth_plain(
@@ -1493,9 +1857,9 @@ mod tests {
         v: Real,
         cfg: &Config,
     ) -> Option<Real> {
-        let z_ref = bilinear_depth(depth, u, v, cfg.depth_edge_m)?;
+        let z_ref = bilinear_depth_plain(depth, u, v, cfg.depth_edge_m)?;
         let r = cfg.depth_window_px as i64;
-        let (xc, yc) = (floor_to_i64(u + 0.5), floor_to_i64(v + 0.5));
+        let (xc, yc) = (floor(u + 0.5), floor(v + 0.5));
         let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         let (mut sz, mut sxz, mut syz) = (0.0, 0.0, 0.0);
         for y in yc - r..=yc + r {

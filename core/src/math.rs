@@ -68,16 +68,6 @@ pub(crate) fn round(x: Real) -> Real {
     }
 }
 
-/// `libm::floorf(x) as i64` for every `x` (the tests check), without the call: the
-/// truncation, one lower where it rounded up. `i64` casts saturate (NaN gives 0), and
-/// a truncated `f32` is an `f32` integer, exactly representable in both types.
-#[inline]
-pub(crate) fn floor_to_i64(x: Real) -> i64 {
-    let t = x as i64;
-    // Below `i64::MIN` the truncation saturated and compares above: stay saturated.
-    t.saturating_sub(i64::from(t as Real > x))
-}
-
 #[inline]
 pub(crate) fn ln(x: Real) -> Real {
     libm::logf(x)
@@ -97,56 +87,7 @@ pub(crate) fn scalbn(x: Real, n: i32) -> Real {
 
 #[cfg(test)]
 mod tests {
-    use super::{floor_to_i64, round};
-
-    fn same_floor(x: f32) -> bool {
-        floor_to_i64(x) == libm::floorf(x) as i64
-    }
-
-    #[test]
-    fn floor_to_i64_matches_libm_at_the_edges() {
-        let two_63 = 9_223_372_036_854_775_808.0f32;
-        let edges = [
-            0.0,
-            -0.0,
-            0.5,
-            -0.5,
-            -1.0,
-            -1.5,
-            0.999_999_94,
-            -0.999_999_94,
-            8_388_607.5,
-            -8_388_607.5,
-            16_777_217.0,
-            two_63,
-            -two_63,
-            two_63 * 2.0,
-            -two_63 * 2.0,
-            f32::MAX,
-            f32::MIN,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::NAN,
-            -f32::NAN,
-            1e-45,
-            -1e-45,
-        ];
-        for x in edges {
-            assert!(same_floor(x), "floor_to_i64({x}) = {}", floor_to_i64(x));
-        }
-    }
-
-    proptest::proptest! {
-        #[test]
-        fn floor_to_i64_matches_libm_on_any_bits(bits: u32) {
-            proptest::prop_assert!(same_floor(f32::from_bits(bits)));
-        }
-
-        #[test]
-        fn floor_to_i64_matches_libm_on_pixel_coordinates(x in -5000.0f32..5000.0) {
-            proptest::prop_assert!(same_floor(x));
-        }
-    }
+    use super::round;
 
     fn same(x: f32) -> bool {
         round(x).to_bits() == libm::roundf(x).to_bits() || (x.is_nan() && round(x).is_nan())

@@ -574,7 +574,8 @@ fn bilinear_depth(depth: &ImageView<'_, f32>, u: Real, v: Real, edge_m: Real) ->
     }
     // Not negative: truncation rounds down (and saturates far outside any image).
     let (x0, y0) = (u as usize, v as usize);
-    // Exact below 2^64; from there on no pixel is found anyway.
+    // Exact while the place fits `usize` (2^32 on the firmware and wasm32); past that the
+    // saturated place finds no pixel.
     let (fx, fy) = (u - x0 as Real, v - y0 as Real);
     // At the last row/column the far neighbour has zero weight; reuse the near one.
     let x1 = if fx > 0.0 { x0.saturating_add(1) } else { x0 };
@@ -663,7 +664,7 @@ fn index_rows<'r>(
 
 /// The places `first..last` of the samples in rows `ys`: from the rows' first samples
 /// `rows` ([`index_rows`]) if given, else by binary search. `None` only if `rows` is
-/// empty.
+/// empty (an index has a row past the last, so it never is).
 fn rows_window(
     samples: &[FrameSample],
     rows: Option<&[u16]>,
@@ -676,9 +677,10 @@ fn rows_window(
             samples.partition_point(|s| i64::from(s.px[1]) <= y_hi),
         ));
     };
+    let last = rows.len().checked_sub(1)?;
     let first_at = |y: i64| {
-        rows.get(y.clamp(0, rows.len() as i64 - 1) as usize)
-            .copied()
+        let row = usize::try_from(y.max(0)).map_or(last, |y| y.min(last));
+        rows.get(row).copied()
     };
     Some((
         usize::from(first_at(y_lo)?),
@@ -992,6 +994,7 @@ fn prunable(dj: Real, db: Real) -> bool {
 /// keeps the earliest of its best; the earliest of the lanes' equal best wins, as a scan
 /// in order picks. `PRUNE` as [`third_point_of_kept`]. Inlined where there are
 /// [`LANES`] (fewer instructions there; more on the firmware).
+// The same targets as [`LANES`]: keep the two lists alike.
 #[cfg_attr(
     any(
         target_feature = "sse2",
@@ -1621,6 +1624,14 @@ mod tests {
         // No room for 7 entries; a sample below a 3-row image.
         assert_eq!(index_rows(&samples, 6, &mut first), None);
         assert_eq!(index_rows(&samples, 3, &mut first), None);
+        // An empty index gives no window (and does not panic); rows past the index's
+        // ends read its first or last entry.
+        assert_eq!(rows_window(&samples, Some(&[]), 0..=2), None);
+        let rows = [0, 0, 1, 1, 3, 3];
+        assert_eq!(
+            rows_window(&samples, Some(&rows), -9..=i64::MAX),
+            Some((0, 3))
+        );
     }
 
     #[test]
@@ -1722,7 +1733,7 @@ mod tests {
             // The scan over packed keys, and over the samples (as past `PACKED_ON_STACK`);
             // the window from the rows' first samples, and by binary search.
             let mut keys = [0; PACKED_ON_STACK];
-            let packed = pack_keys(&samples, 1, &mut keys);
+            let packed = pack_keys(&samples, 120, &mut keys);
             proptest::prop_assert!(packed.is_some());
             let mut first = [0; INDEXED_ROWS + 1];
             let rows = index_rows(&samples, 120, &mut first);

@@ -569,14 +569,9 @@ fn nearest_among<const K: usize>(
             return false;
         }
         let d = du * du + dv * dv;
-        // Insertion into the sorted list of the nearest so far; one not nearer than the
-        // last moves nothing. By selects: where it lands is a coin flip.
+        // One not nearer than the last moves nothing.
         if d < worst && is_member(j) {
-            let mut entry = (d, id);
-            for slot in near.iter_mut() {
-                let nearer = entry.0 < slot.0;
-                (*slot, entry) = select_unpredictable(nearer, (entry, *slot), (*slot, entry));
-            }
+            insert(near, (d, id));
         }
         true
     };
@@ -591,6 +586,19 @@ fn nearest_among<const K: usize>(
         }
     }
     near
+}
+
+/// Inserts `entry` into `near`, a list sorted by distance (ascending, no NaN), carrying
+/// it from the first slot on and swapping it with each slot's entry that is strictly
+/// farther. So it lands after the entries of equal distance, and behind it each run of
+/// equal distances turns by one (its first entry moves to its end); the last run's first
+/// entry drops out. The order of equal distances shows in the smoothed misses' sums.
+/// By selects: where it lands is a coin flip.
+fn insert<const K: usize>(near: &mut [(Real, usize); K], mut entry: (Real, usize)) {
+    for slot in near.iter_mut() {
+        let nearer = entry.0 < slot.0;
+        (*slot, entry) = select_unpredictable(nearer, (entry, *slot), (*slot, entry));
+    }
 }
 
 /// The point pairs (`t`, `t+1`) of the frames of group `g`, of one part (`side`) or all.
@@ -795,6 +803,43 @@ mod tests {
             let got = coherence_listed(&frames, &is_member, &mut listed_side);
             proptest::prop_assert_eq!(want.to_bits(), got.to_bits());
             proptest::prop_assert_eq!(side, listed_side);
+        }
+    }
+
+    /// [`insert`] as its docs tell it: after the entries of equal or smaller distance,
+    /// each farther run of equal distances turned by one, cut to `K` entries.
+    fn insert_by_runs<const K: usize>(near: &mut [(Real, usize); K], d: Real, id: usize) {
+        let j = near.iter().take_while(|e| e.0 <= d).count();
+        let mut out: std::vec::Vec<(Real, usize)> = near[..j].to_vec();
+        out.push((d, id));
+        let mut rest = &near[j..];
+        while let Some(&first) = rest.first() {
+            let run = rest.iter().take_while(|e| e.0 == first.0).count();
+            out.extend_from_slice(&rest[1..run]);
+            out.push(first);
+            rest = &rest[run..];
+        }
+        near.copy_from_slice(&out[..K]);
+    }
+
+    proptest::proptest! {
+        /// [`insert`] does what its docs say, ids included, over any sequence of
+        /// insertions of entries nearer than the last (as the search makes them); few
+        /// distinct distances make ties, in the middle and at the last slot, common.
+        #[test]
+        fn insert_turns_runs_of_equal_distance(
+            distances in proptest::collection::vec(0u32..6, 1..60),
+        ) {
+            let mut want = [(Real::INFINITY, usize::MAX); SMOOTH_NEIGHBOURS];
+            let mut got = want;
+            for (id, &d) in distances.iter().enumerate() {
+                let d = d as Real;
+                if d < want[SMOOTH_NEIGHBOURS - 1].0 {
+                    insert_by_runs(&mut want, d, id);
+                    insert(&mut got, (d, id));
+                }
+                proptest::prop_assert_eq!(want, got);
+            }
         }
     }
 

@@ -885,12 +885,9 @@ fn four_bits<T>([a, b, c, d]: &[T; 4], candidate: impl Fn(&T) -> bool) -> usize 
     bit(a) | bit(b) << 1 | bit(c) << 2 | bit(d) << 3
 }
 
-/// Whether `wide` has vector lanes on this target (elsewhere it runs them one by one).
-const LANES: bool = cfg!(any(
-    target_feature = "sse2",
-    target_feature = "simd128",
-    target_feature = "neon"
-));
+/// Whether `wide` has vector lanes on this target (elsewhere it runs them one by one;
+/// `build.rs` sets the cfg).
+const LANES: bool = cfg!(vector_lanes);
 
 /// Whether [`build_frame`] tests the column keys of samples on vector lanes, two at a
 /// time: only where there are [`LANES`] and the low half of a `u64` comes first.
@@ -994,15 +991,7 @@ fn prunable(dj: Real, db: Real) -> bool {
 /// keeps the earliest of its best; the earliest of the lanes' equal best wins, as a scan
 /// in order picks. `PRUNE` as [`third_point_of_kept`]. Inlined where there are
 /// [`LANES`] (fewer instructions there; more on the firmware).
-// The same targets as [`LANES`]: keep the two lists alike.
-#[cfg_attr(
-    any(
-        target_feature = "sse2",
-        target_feature = "simd128",
-        target_feature = "neon"
-    ),
-    inline(always)
-)]
+#[cfg_attr(vector_lanes, inline(always))]
 fn best_triangle_listed<const PRUNE: bool>(
     o: &FrameSample,
     window: &[FrameSample],

@@ -437,11 +437,7 @@ fn fill_lanes<'a>(twists: &[Twist], lanes: &'a mut [Real]) -> [&'a [Real]; TWIST
 /// Whether [`pair_codes`] codes sixteen pairs at a time, and pass 2 takes rows
 /// [`LINK_ROWS`] at a time ([`links_below`]): only where `wide` has vector lanes to pack
 /// the codes with.
-const SIXTEEN_PAIR_CODES: bool = cfg!(any(
-    target_feature = "sse2",
-    target_feature = "simd128",
-    target_feature = "neon"
-));
+const SIXTEEN_PAIR_CODES: bool = cfg!(vector_lanes);
 
 /// A frame's flags for [`code_of_bin`]: what its pairs across segments with a moving
 /// frame add to their bin ([`ACROSS`] if it moves, or all bits: [`NO_PAIR`]).
@@ -563,14 +559,7 @@ fn pass_one(
 // Where sixteen pairs are coded at a time, each kind of row is a function of its own:
 // inlined side by side, the inside rows' loop reloaded the splat twist from the stack
 // every sixteen pairs. Without vector lanes (Cortex-M) the inlined pair costs less.
-#[cfg_attr(
-    any(
-        target_feature = "sse2",
-        target_feature = "simd128",
-        target_feature = "neon"
-    ),
-    inline(never)
-)]
+#[cfg_attr(vector_lanes, inline(never))]
 fn pair_codes<'a, const INSIDE: bool>(
     lanes: &[&[Real]; TWIST_LANES],
     i: usize,

@@ -111,13 +111,13 @@ impl<'a, T> ImageView<'a, T> {
 }
 
 impl<T: Copy> ImageView<'_, T> {
-    /// The pixel at signed coordinates, `None` outside the image.
+    /// The pixel at signed coordinates, `None` outside the image (also where a
+    /// coordinate does not fit a `usize`, as from 2^32 on a 32-bit target).
     #[must_use]
     pub fn at(&self, x: i64, y: i64) -> Option<T> {
-        if x < 0 || y < 0 {
-            return None;
-        }
-        self.get(x as usize, y as usize).copied()
+        let x = usize::try_from(x).ok()?;
+        let y = usize::try_from(y).ok()?;
+        self.get(x, y).copied()
     }
 }
 
@@ -284,6 +284,11 @@ mod tests {
         assert_eq!(v.get(2, 1), Some(&7));
         assert_eq!(v.get(3, 0), None);
         assert_eq!(v.at(-1, 0), None);
+        assert_eq!(v.at(2, 1), Some(7));
+        // A wrap to `usize` would read (0, 0) and (1, 0) on a 32-bit target.
+        assert_eq!(v.at(1 << 32, 0), None);
+        assert_eq!(v.at(1, 1 << 32), None);
+        assert_eq!(v.at(i64::MIN, i64::MAX), None);
         assert_eq!(v.row(1), Some(&data[4..7]));
         assert_eq!(v.row(2), None);
         assert_eq!(v.pixels().count(), 6);

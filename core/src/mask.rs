@@ -787,23 +787,15 @@ impl PixelBatch {
 }
 
 /// A number of a candidate's motion as [`ObservedLanes::decide`] reads it. Where lanes
-/// are vector registers (SSE2, NEON, wasm's simd128) it is put in every lane once per
-/// segment rather than once per batch: 0.28 M fewer instructions a synthetic 640×480
-/// step (callgrind). Elsewhere (the Cortex-M4F firmware) lanes are arrays, eight copies
-/// cost eight loads, and it stays one number: as eight, 0.16 M more instructions a
-/// firmware step.
-#[cfg(any(
-    target_feature = "sse2",
-    target_feature = "neon",
-    target_feature = "simd128"
-))]
+/// are vector registers (`cfg(vector_lanes)`: SSE2, wasm's simd128, NEON on aarch64) it
+/// is put in every lane once per segment rather than once per batch: 0.28 M fewer
+/// instructions a synthetic 640×480 step (callgrind). Elsewhere (the Cortex-M4F
+/// firmware) lanes are arrays, eight copies cost eight loads, and it stays one number:
+/// as eight, 0.16 M more instructions a firmware step.
+#[cfg(vector_lanes)]
 type MotionLanes = f32x8;
 /// See the other [`MotionLanes`].
-#[cfg(not(any(
-    target_feature = "sse2",
-    target_feature = "neon",
-    target_feature = "simd128"
-)))]
+#[cfg(not(vector_lanes))]
 type MotionLanes = Real;
 
 /// A candidate group's motion as [`ObservedLanes::decide`] applies it, read from its

@@ -14,21 +14,13 @@ pub(crate) fn sqrt(x: Real) -> Real {
 }
 
 /// Square roots of four lanes, correctly rounded as [`sqrt`] is: one instruction where
-/// the target has one (SSE, WebAssembly SIMD, NEON on aarch64; IEEE 754 square roots
-/// are exact), lane by lane otherwise.
+/// the target has vector lanes (`cfg(vector_lanes)`: SSE2, WebAssembly SIMD, NEON on
+/// aarch64; IEEE 754 square roots are exact), lane by lane otherwise.
 #[inline]
 pub(crate) fn sqrt4(x: f32x4) -> f32x4 {
-    #[cfg(any(
-        target_feature = "sse",
-        target_feature = "simd128",
-        all(target_feature = "neon", target_arch = "aarch64")
-    ))]
+    #[cfg(vector_lanes)]
     let root = x.sqrt();
-    #[cfg(not(any(
-        target_feature = "sse",
-        target_feature = "simd128",
-        all(target_feature = "neon", target_arch = "aarch64")
-    )))]
+    #[cfg(not(vector_lanes))]
     let root = f32x4::new(x.to_array().map(sqrt));
     root
 }
